@@ -1,0 +1,29 @@
+"""Errors that carry the one line a user needs: which file, and what is wrong with it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class DancedataError(Exception):
+    """Base class: a problem the user can act on, printed as one line without a traceback."""
+
+    def __init__(self, problem: str, path: str | Path | None = None) -> None:
+        self.problem = problem
+        self.path = str(path) if path is not None else None
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.problem}" if self.path else self.problem
+
+
+class InputError(DancedataError):
+    """An input file is missing, malformed or unsafe."""
+
+
+class StoreError(DancedataError):
+    """A store is missing, malformed, locked, or does not hold what was asked for."""
+
+
+class ContractViolation(StoreError):
+    """A store does not match the contract in schemas/."""

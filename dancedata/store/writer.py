@@ -1,0 +1,240 @@
+"""Build a new store version under a temporary name, then commit it with one rename.
+
+Nothing a writer does is visible until :meth:`VersionWriter.commit`: the version is assembled in
+``versions/.tmp-<pid>-<token>``, manifest.json is written last, the directory is renamed to
+``vN`` (atomic on a local filesystem) and store.json is pointed at it. A crash at any point
+leaves the previous versions untouched; the temporary directory is removed by the next writer.
+
+A new version starts as a copy of its parent. Data files (zarr chunks, parquet) are hard-linked,
+since committed versions are immutable and zarr replaces files by rename rather than rewriting
+them; metadata files are copied so that updating them never touches the parent.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import secrets
+import shutil
+from collections.abc import Iterable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from dancedata._version import __version__
+from dancedata.errors import StoreError
+from dancedata.store.layout import (
+    MANIFEST_FILE,
+    TABLE_FILES,
+    TEMP_PREFIX,
+    ZARR_DIR,
+    StoreLayout,
+    fsync_dir,
+    version_number,
+    write_json_atomic,
+)
+from dancedata.store.lock import StoreLock
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+    import zarr
+
+_COPIED_NAMES = {"zarr.json", ".zattrs", ".zgroup", ".zarray", MANIFEST_FILE}
+
+
+def library_versions() -> dict[str, str]:
+    """Versions of the libraries whose output lands in a store."""
+    from importlib import metadata
+
+    found = {"dancedata": __version__}
+    for name in ("numpy", "scipy", "librosa", "zarr", "pyarrow", "soundfile", "numba"):
+        try:
+            found[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return found
+
+
+def _link_or_copy_tree(src: Path, dst: Path, skip: set[str]) -> None:
+    """Recreate ``src`` at ``dst``: metadata copied, data files hard-linked (copied when the
+    filesystem refuses links). Top-level entries named in ``skip`` are left out."""
+    for dirpath, dirnames, filenames in os.walk(src):
+        rel = Path(dirpath).relative_to(src)
+        if rel == Path("."):
+            dirnames[:] = [d for d in dirnames if d not in skip]
+            filenames = [f for f in filenames if f not in skip]
+        (dst / rel).mkdir(parents=True, exist_ok=True)
+        for name in filenames:
+            source, target = Path(dirpath) / name, dst / rel / name
+            if name in _COPIED_NAMES:
+                shutil.copy2(source, target)
+                continue
+            try:
+                os.link(source, target)
+            except OSError:
+                shutil.copy2(source, target)
+
+
+def clean_abandoned_temps(layout: StoreLayout) -> list[str]:
+    """Remove temporary version directories left by writers that died. Call under the lock:
+    then no live writer of this store owns any of them."""
+    removed = []
+    for path in layout.temp_dirs():
+        shutil.rmtree(path, ignore_errors=True)
+        removed.append(path.name)
+    return removed
+
+
+class VersionWriter:
+    """One new version in the making. Use as a context manager::
+
+        with VersionWriter(store_path, command="featurize", config=cfg, inputs=[...]) as v:
+            v.zarr_group()["motion"].create_array(...)
+            v.write_table("measures", table)
+            v.commit(counts={...})
+
+    Leaving the block without :meth:`commit` (or with an exception) discards everything.
+    """
+
+    def __init__(
+        self,
+        store: str | Path,
+        *,
+        command: str,
+        config: dict[str, Any],
+        fingerprint: str,
+        inputs: Iterable[dict[str, Any]] = (),
+        parent: str | None = None,
+        carry_over: bool = True,
+        drop: Iterable[str] = (),
+        wait_for_lock: bool = False,
+    ) -> None:
+        self.layout = StoreLayout(store)
+        self.command = command
+        self.config = config
+        self.fingerprint = fingerprint
+        self.inputs = list(inputs)
+        self.parent = parent
+        self.carry_over = carry_over
+        self.drop = set(drop)
+        self.skipped: list[dict[str, str]] = []
+        self.cleaned_temps: list[str] = []
+        self._lock = StoreLock(self.layout.root, wait=wait_for_lock)
+        self.tmp: Path | None = None
+        self.committed_as: str | None = None
+        self._zarr_group: zarr.Group | None = None
+
+    # -- lifecycle -----------------------------------------------------------------------------
+    def __enter__(self) -> VersionWriter:
+        self.layout.ensure()
+        self._lock.acquire()
+        try:
+            self.cleaned_temps = clean_abandoned_temps(self.layout)
+            self.tmp = self.layout.versions_dir / (
+                f"{TEMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"
+            )
+            self.tmp.mkdir(parents=True)
+            if self.parent is not None and self.carry_over:
+                _link_or_copy_tree(
+                    self.layout.version_dir(self.parent), self.tmp, {MANIFEST_FILE, *self.drop}
+                )
+        except BaseException:
+            self._discard()
+            raise
+        return self
+
+    def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
+        if self.committed_as is None:
+            self._discard()
+
+    def _discard(self) -> None:
+        if self.tmp is not None and self.tmp.exists():
+            shutil.rmtree(self.tmp, ignore_errors=True)
+        self._lock.release()
+
+    # -- content -------------------------------------------------------------------------------
+    @property
+    def path(self) -> Path:
+        if self.tmp is None:
+            raise StoreError("VersionWriter used outside its with-block")
+        return self.tmp
+
+    def zarr_group(self) -> zarr.Group:
+        """The version's root zarr group (created on first use, with motion/ and audio/)."""
+        if self._zarr_group is None:
+            import zarr
+
+            self._zarr_group = zarr.open_group(self.path / ZARR_DIR, mode="a", zarr_format=3)
+        return self._zarr_group
+
+    def remove_array(self, name: str) -> None:
+        """Delete an array (or group) carried over from the parent before replacing it."""
+        target = self.path / ZARR_DIR / name
+        if target.exists():
+            shutil.rmtree(target)
+            self._zarr_group = None  # reopen: cached metadata may name the removed node
+
+    def write_table(self, name: str, table: pa.Table) -> Path:
+        """Write one of the contract's parquet tables, replacing a carried-over one."""
+        import pyarrow.parquet as pq
+
+        if name not in TABLE_FILES:
+            raise StoreError(f"unknown table {name!r}; known: {sorted(TABLE_FILES)}")
+        target = self.path / TABLE_FILES[name]
+        if target.exists():
+            target.unlink()  # may be a hard link into the parent: unlink, never overwrite
+        pq.write_table(table, target, compression="zstd")
+        return target
+
+    def skip(self, path: str | Path, error: str) -> None:
+        """Record an input skipped under ``--on-error skip``."""
+        self.skipped.append({"path": str(path), "error": error})
+
+    # -- commit --------------------------------------------------------------------------------
+    def commit(self, counts: dict[str, Any] | None = None) -> str:
+        """Consolidate metadata, write manifest.json, rename into place, move store.json."""
+        if self.committed_as is not None:
+            return self.committed_as
+        zarr_path = self.path / ZARR_DIR
+        if zarr_path.exists():
+            import zarr
+
+            zarr.consolidate_metadata(str(zarr_path))
+        committed = self.layout.committed_versions()
+        name = f"v{version_number(committed[-1]) + 1 if committed else 1}"
+        manifest = {
+            "format_version": 1,
+            "version": name,
+            "parent": self.parent,
+            "created_at": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "dancedata_version": __version__,
+            "command": self.command,
+            "config": self.config,
+            "fingerprint": self.fingerprint,
+            "inputs": self.inputs,
+            "skipped": self.skipped,
+            "libraries": library_versions(),
+            "counts": counts or {},
+        }
+        write_json_atomic(self.path / MANIFEST_FILE, manifest)
+        final = self.layout.version_dir(name)
+        os.rename(self.path, final)
+        fsync_dir(self.layout.versions_dir)
+        self.committed_as = name
+        self.tmp = final
+        self.layout.write_pointer(name)
+        self._lock.release()
+        return name
+
+
+def find_version_with_fingerprint(store: str | Path, fingerprint: str) -> str | None:
+    """The committed version whose manifest carries ``fingerprint``, if any."""
+    layout = StoreLayout(store)
+    if not layout.exists():
+        return None
+    for name in reversed(layout.committed_versions()):
+        try:
+            if layout.read_manifest(name).get("fingerprint") == fingerprint:
+                return name
+        except StoreError:
+            continue
+    return None
