@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import typer
-
 from dancedata.cli.main import app
 
-synth_app = typer.Typer(help="Write synthetic datasets in real on-disk formats.", no_args_is_help=True)
-ingest_app = typer.Typer(
-    help="Read a raw dataset into a new store version.", no_args_is_help=True
+synth_app = typer.Typer(
+    help="Write synthetic datasets in real on-disk formats.", no_args_is_help=True
 )
-export_app = typer.Typer(help="Write stored sequences back to interchange formats.", no_args_is_help=True)
+ingest_app = typer.Typer(help="Read a raw dataset into a new store version.", no_args_is_help=True)
+export_app = typer.Typer(
+    help="Write stored sequences back to interchange formats.", no_args_is_help=True
+)
 
 app.add_typer(synth_app, name="synth")
 app.add_typer(ingest_app, name="ingest")

@@ -26,7 +26,16 @@ GENRES: dict[str, str] = {
 SITUATIONS: dict[str, str] = {"sBM": "basic", "sFM": "advanced"}
 # The music ids held out for crossmodal val/test in the official split.
 HELD_OUT_MUSIC_IDS: tuple[str, ...] = (
-    "mBR0", "mPO1", "mLO2", "mMH3", "mLH4", "mHO5", "mWA0", "mKR2", "mJS3", "mJB5",
+    "mBR0",
+    "mPO1",
+    "mLO2",
+    "mMH3",
+    "mLH4",
+    "mHO5",
+    "mWA0",
+    "mKR2",
+    "mJS3",
+    "mJB5",
 )
 
 _SEQ_RE = re.compile(

@@ -6,6 +6,7 @@ alive) is stale and is taken over, so a crashed writer never blocks the store fo
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import socket
@@ -63,10 +64,8 @@ class StoreLock:
                 holder = read_holder(self.path)
                 if holder_is_stale(holder):
                     # Take over a dead holder's lock; remove-then-retry keeps O_EXCL the arbiter.
-                    try:
+                    with contextlib.suppress(FileNotFoundError):
                         self.path.unlink()
-                    except FileNotFoundError:
-                        pass
                     continue
                 who = f"pid {holder.get('pid')} on {holder.get('host')}" if holder else "?"
                 if not self.wait:
@@ -75,7 +74,9 @@ class StoreLock:
                         self.path.parent,
                     ) from None
                 if time.monotonic() > deadline:
-                    raise StoreError(f"gave up waiting for the lock held by {who}", self.path)
+                    raise StoreError(
+                        f"gave up waiting for the lock held by {who}", self.path
+                    ) from None
                 if not announced:
                     import sys
 
@@ -93,10 +94,8 @@ class StoreLock:
 
     def release(self) -> None:
         if self._held:
-            try:
+            with contextlib.suppress(FileNotFoundError):
                 self.path.unlink()
-            except FileNotFoundError:
-                pass
             self._held = False
 
     def __enter__(self) -> StoreLock:

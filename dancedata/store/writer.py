@@ -196,9 +196,15 @@ class VersionWriter:
             return self.committed_as
         zarr_path = self.path / ZARR_DIR
         if zarr_path.exists():
+            import warnings
+
             import zarr
 
-            zarr.consolidate_metadata(str(zarr_path))
+            with warnings.catch_warnings():
+                # Consolidated metadata is a zarr-python extension to v3; we write it for fast
+                # opens and readers that ignore it still work.
+                warnings.simplefilter("ignore", category=UserWarning)
+                zarr.consolidate_metadata(str(zarr_path))
         committed = self.layout.committed_versions()
         name = f"v{version_number(committed[-1]) + 1 if committed else 1}"
         manifest = {
@@ -224,6 +230,28 @@ class VersionWriter:
         self.layout.write_pointer(name)
         self._lock.release()
         return name
+
+
+def already_done(
+    store: str | Path,
+    fingerprint: str,
+    parent_manifest: dict[str, Any] | None = None,
+    command: str | None = None,
+    config: dict[str, Any] | None = None,
+) -> str | None:
+    """The committed version that already holds a command's result, if any: one with the same
+    fingerprint, or the parent itself when it was made by the same command with the same config
+    (featurize and segment are idempotent: running them on their own output changes nothing)."""
+    found = find_version_with_fingerprint(store, fingerprint)
+    if found is not None:
+        return found
+    if (
+        parent_manifest is not None
+        and parent_manifest.get("command") == command
+        and parent_manifest.get("config") == config
+    ):
+        return parent_manifest.get("version")
+    return None
 
 
 def find_version_with_fingerprint(store: str | Path, fingerprint: str) -> str | None:

@@ -1,0 +1,5 @@
+"""``python -m dancedata.cli``: the same as the ``dancedata`` command."""
+
+from dancedata.cli.main import main
+
+main()

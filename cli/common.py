@@ -1,0 +1,61 @@
+"""Options and output helpers shared by the command modules."""
+
+from __future__ import annotations
+
+import json
+from enum import StrEnum
+from typing import Annotated, Any
+
+import typer
+
+Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars.")]
+Json = Annotated[
+    bool, typer.Option("--json", help="Print a machine-readable JSON summary on stdout at the end.")
+]
+Wait = Annotated[
+    bool,
+    typer.Option(
+        "--wait", help="If another writer holds the store lock, wait for it instead of failing."
+    ),
+]
+VersionOpt = Annotated[
+    str | None, typer.Option("--version", "-V", help="Version to read (default: latest).")
+]
+
+
+class OnError(StrEnum):
+    fail = "fail"
+    skip = "skip"
+
+
+OnErrorOpt = Annotated[
+    OnError,
+    typer.Option(
+        "--on-error",
+        help="fail: stop at the first bad input. skip: go on and record each skipped input "
+        "with its reason in the manifest.",
+    ),
+]
+
+
+def setup(quiet: bool) -> None:
+    from dancedata.progress import set_quiet
+
+    set_quiet(quiet)
+
+
+def report(result: Any, command: str, as_json: bool) -> None:
+    """Print the command's result: one human line (stderr when --json) or the JSON summary."""
+    if as_json:
+        typer.echo(json.dumps({"command": command, **result.as_dict()}, indent=2, default=str))
+        return
+    typer.echo(result.message(command))
+    for item in result.skipped:
+        typer.echo(f"  skipped {item['path']}: {item['error']}", err=True)
+
+
+def split_csv(value: str | None) -> list[str] | None:
+    if value is None:
+        return None
+    items = [v.strip() for v in value.split(",") if v.strip()]
+    return items or None

@@ -1,0 +1,52 @@
+"""``dancedata ingest aist``: AIST++ annotations into a new store version."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from dancedata.cli.apps import ingest_app
+from dancedata.cli.common import Json, OnError, OnErrorOpt, Quiet, Wait, report, setup, split_csv
+
+
+@ingest_app.command("aist")
+def ingest_aist_cmd(
+    raw: Annotated[Path, typer.Argument(help="AIST++ annotation root (motions/, splits/, ...).")],
+    store: Annotated[Path, typer.Option("--store", "-s", help="Store directory (created if new).")],
+    music_dir: Annotated[
+        Path | None,
+        typer.Option(help="Folder of <music_id>.wav/.mp3/.flac (default: RAW/wav or RAW/music)."),
+    ] = None,
+    allow_missing_music: Annotated[
+        bool, typer.Option(help="Keep sequences whose music is missing and record the gap.")
+    ] = False,
+    genres: Annotated[
+        str | None, typer.Option(help="Only these genres, comma-separated (e.g. gBR,gPO).")
+    ] = None,
+    exclude_genres: Annotated[
+        str | None, typer.Option(help="Drop these genres (the keyframe study drops gJB).")
+    ] = None,
+    situations: Annotated[
+        str | None, typer.Option(help="Only these situations: sBM (basic), sFM (advanced).")
+    ] = None,
+    on_error: OnErrorOpt = OnError.fail,
+    wait: Wait = False,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Read AIST++ motion pickles (safely: nothing in them is executed), splits, ignore list and
+    music into a new store version. Translation is stored in metres (smpl_trans / smpl_scaling)."""
+    setup(quiet)
+    from dancedata.ingest.aist import AistIngestOptions, ingest_aist
+
+    options = AistIngestOptions(
+        music_dir=music_dir,
+        allow_missing_music=allow_missing_music,
+        genres=split_csv(genres),
+        exclude_genres=split_csv(exclude_genres),
+        situations=split_csv(situations),
+        on_error=on_error.value,
+        wait_for_lock=wait,
+    )
+    report(ingest_aist(store, raw, options), "ingest aist", as_json)

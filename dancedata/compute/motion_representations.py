@@ -1,0 +1,74 @@
+"""Every rotation representation of a block of frames, from axis-angle, in one pass.
+
+Pure: arrays in, arrays out. Works on any (F, J, 3) block; quaternion sign continuity over time
+is handled per sequence by the caller, which knows where sequences start and stop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dancedata.compute.rotations import (
+    ROT6D_LAYOUT,
+    axis_angle_to_rotmat,
+    quat_sign_continuous,
+    rotmat_to_euler,
+    rotmat_to_quat,
+    rotmat_to_rot6d,
+)
+
+REPRESENTATIONS: tuple[str, ...] = ("rotmat", "euler", "quat", "rot6d")
+
+
+def representation_attrs(name: str, euler_order: str) -> dict[str, str]:
+    """The attrs the contract requires on each stored representation."""
+    return {
+        "rotmat": {"units": "1"},
+        "euler": {"order": euler_order, "units": "rad"},
+        "quat": {"quat_order": "wxyz", "sign": "continuous over time within each sequence"},
+        "rot6d": {"rot6d_layout": ROT6D_LAYOUT},
+    }[name]
+
+
+def row_shape(name: str, n_joints: int) -> tuple[int, ...]:
+    return {
+        "rotmat": (n_joints, 3, 3),
+        "euler": (n_joints, 3),
+        "quat": (n_joints, 4),
+        "rot6d": (n_joints, 6),
+    }[name]
+
+
+def representations_from_axis_angle(
+    axis_angle: np.ndarray, names: tuple[str, ...] | list[str], euler_order: str
+) -> dict[str, np.ndarray]:
+    """(F, J, 3) axis-angle (radians) → the requested representations, float64.
+
+    Quaternions come out with w ≥ 0 per frame; make them continuous with
+    :func:`continue_quat_signs`.
+    """
+    rotmat = axis_angle_to_rotmat(axis_angle)
+    out: dict[str, np.ndarray] = {}
+    for name in names:
+        if name == "rotmat":
+            out[name] = rotmat
+        elif name == "euler":
+            out[name] = rotmat_to_euler(rotmat, euler_order)
+        elif name == "quat":
+            out[name] = rotmat_to_quat(rotmat)
+        elif name == "rot6d":
+            out[name] = rotmat_to_rot6d(rotmat)
+        else:
+            raise ValueError(f"unknown representation {name!r}; known: {REPRESENTATIONS}")
+    return out
+
+
+def continue_quat_signs(quat: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+    """Make (F, J, 4) quaternions sign-continuous over time, continuing from ``previous``
+    (the (J, 4) last frame of the same sequence) when the block continues a sequence, else
+    starting from the block's first frame as it is."""
+    if previous is None:
+        return quat_sign_continuous(quat)
+    joined = quat_sign_continuous(np.concatenate([previous[None], quat], axis=0))
+    # quat_sign_continuous never flips frame 0, so `previous` keeps its sign.
+    return joined[1:]

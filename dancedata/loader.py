@@ -1,0 +1,247 @@
+"""Read a store back: tables, per-sequence arrays, aligned audio, the study views, measures.
+
+    import dancedata
+    store = dancedata.open_store("data/stores/aist-demo")
+    store.motion("gBR_sBM_cAll_d01_mBR1_ch01", "rotmat")      # (F, 24, 3, 3)
+    store.view("gBR_sBM_cAll_d01_mBR1_ch01", "fact_motion_225")  # (F, 225)
+    for m in store.iter_measures(split="train"):               # crossmodal scheme by default
+        m.motion, m.audio                                     # (frames, 225), (frames, 35)
+
+Arrays are read whole into memory on first use and kept (a store's arrays are immutable), so
+random access afterwards costs a numpy slice. For stores larger than memory, read slices through
+:meth:`DanceStore.zarr` instead.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from dancedata.errors import StoreError
+from dancedata.store.reader import VersionReader
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+    import zarr
+
+# Derived layouts (CONTRACT.md §3): name → ordered parts, each (kind, array, width or None).
+VIEWS: dict[str, list[tuple[str, str]]] = {
+    "fact_motion_225": [("zeros6", ""), ("motion", "trans"), ("motion", "rotmat")],
+    "thesis_euler_75": [("motion", "trans"), ("motion", "euler")],
+    "fact_audio_35": [
+        ("audio", "onset_env"),
+        ("audio", "mfcc"),
+        ("audio", "chroma_cens"),
+        ("audio", "onset_peaks"),
+        ("audio", "beats"),
+    ],
+    "thesis_audio_22": [("audio", "mfcc"), ("audio", "onset_env"), ("audio", "onset_peaks")],
+}
+MOTION_VIEWS = ("fact_motion_225", "thesis_euler_75")
+AUDIO_VIEWS = ("fact_audio_35", "thesis_audio_22")
+
+
+@dataclass(frozen=True)
+class MeasureWindow:
+    """One measure of one sequence: frames [frame_start, frame_stop) of the sequence."""
+
+    seq_id: str
+    measure: int
+    frame_start: int
+    frame_stop: int
+    motion: np.ndarray | None
+    audio: np.ndarray | None
+    genre_onehot: np.ndarray
+
+
+class DanceStore:
+    """A committed version of a store, opened for reading."""
+
+    def __init__(self, path: str | Path, version: str | None = None) -> None:
+        self.path = Path(path)
+        self._reader = VersionReader(path, version)
+        self.version = self._reader.version
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def __repr__(self) -> str:
+        return f"DanceStore({str(self.path)!r}, version={self.version!r})"
+
+    # -- tables --------------------------------------------------------------------------------
+    @property
+    def manifest(self) -> dict[str, Any]:
+        return self._reader.manifest
+
+    def table(self, name: str) -> pa.Table:
+        """A parquet table as a pyarrow Table (``.to_pandas()`` if pandas is installed)."""
+        return self._reader.table(name)
+
+    @property
+    def sequences(self) -> pa.Table:
+        return self.table("sequences")
+
+    @property
+    def music(self) -> pa.Table:
+        return self.table("music")
+
+    @property
+    def measures(self) -> pa.Table:
+        return self.table("measures")
+
+    @property
+    def splits(self) -> pa.Table:
+        return self.table("splits")
+
+    @cached_property
+    def _seq_rows(self) -> dict[str, dict[str, Any]]:
+        return {row["seq_id"]: row for row in self.sequences.to_pylist()}
+
+    @cached_property
+    def _music_rows(self) -> dict[str, dict[str, Any]]:
+        if not self._reader.has_table("music"):
+            return {}
+        return {row["music_id"]: row for row in self.music.to_pylist()}
+
+    def sequence(self, seq_id: str) -> dict[str, Any]:
+        """The sequences-table row of ``seq_id``."""
+        try:
+            return self._seq_rows[seq_id]
+        except KeyError:
+            raise StoreError(
+                f"no sequence {seq_id!r} in version {self.version}", self.path
+            ) from None
+
+    def seq_ids(self, split: str | None = None, scheme: str = "crossmodal") -> list[str]:
+        """Sequence ids in store order; with ``split``, those of that split of ``scheme``."""
+        if split is None:
+            return list(self._seq_rows)
+        rows = self.splits.to_pylist()
+        chosen = {r["seq_id"] for r in rows if r["scheme"] == scheme and r["split"] == split}
+        if not any(r["scheme"] == scheme for r in rows):
+            schemes = sorted({r["scheme"] for r in rows})
+            raise StoreError(f"no split scheme {scheme!r} in this store (have {schemes})")
+        return [s for s in self._seq_rows if s in chosen]
+
+    # -- arrays --------------------------------------------------------------------------------
+    def zarr(self, name: str) -> zarr.Array:
+        """The zarr array itself, for slicing without loading it whole."""
+        return self._reader.array(name)
+
+    def array_names(self) -> list[str]:
+        return self._reader.array_names()
+
+    def _full(self, name: str) -> np.ndarray:
+        if name not in self._arrays:
+            self._arrays[name] = np.asarray(self._reader.array(name)[...])
+        return self._arrays[name]
+
+    def motion(self, seq_id: str, name: str) -> np.ndarray:
+        """``motion/<name>`` frames of one sequence, e.g. ``motion(seq, "quat")``."""
+        row = self.sequence(seq_id)
+        return self._full(f"motion/{name}")[row["frame_start"] : row["frame_stop"]]
+
+    def audio_frames(self, seq_id: str) -> int:
+        """How many of the sequence's frames have audio (≤ n_frames)."""
+        row = self.sequence(seq_id)
+        if row.get("music_missing") or row.get("music_id") not in self._music_rows:
+            return 0
+        track = self._music_rows[row["music_id"]]
+        available = track["frame_stop"] - track["frame_start"] - int(row["audio_offset"])
+        return max(0, min(int(row["n_frames"]), available))
+
+    def audio(self, seq_id: str, name: str) -> np.ndarray:
+        """``audio/<name>`` aligned to the sequence: row i meets motion frame i. Runs for
+        :meth:`audio_frames` rows; audio past the end of the motion is cut off."""
+        row = self.sequence(seq_id)
+        n = self.audio_frames(seq_id)
+        if n == 0:
+            raise StoreError(f"sequence {seq_id} has no music", self.path)
+        track = self._music_rows[row["music_id"]]
+        start = track["frame_start"] + int(row["audio_offset"])
+        return self._full(f"audio/{name}")[start : start + n]
+
+    def view(self, seq_id: str, name: str) -> np.ndarray:
+        """A derived layout as float32 (frames, D): fact_motion_225, thesis_euler_75,
+        fact_audio_35 or thesis_audio_22 (CONTRACT.md §3)."""
+        if name not in VIEWS:
+            raise StoreError(f"unknown view {name!r}; known: {sorted(VIEWS)}")
+        parts: list[np.ndarray] = []
+        n_frames = None
+        for kind, array in VIEWS[name]:
+            if kind == "zeros6":
+                parts.append(None)  # type: ignore[arg-type]
+                continue
+            values = self.motion(seq_id, array) if kind == "motion" else self.audio(seq_id, array)
+            values = values.reshape(values.shape[0], -1).astype(np.float32)
+            parts.append(values)
+            n_frames = values.shape[0] if n_frames is None else min(n_frames, values.shape[0])
+        assert n_frames is not None
+        filled = [np.zeros((n_frames, 6), np.float32) if p is None else p[:n_frames] for p in parts]
+        return np.concatenate(filled, axis=1)
+
+    # -- genres and measures -------------------------------------------------------------------
+    @cached_property
+    def genres(self) -> list[str]:
+        """Genres present in this version, sorted: the columns of :meth:`genre_onehot`."""
+        return sorted({r["genre"] for r in self._seq_rows.values() if r.get("genre")})
+
+    def genre_onehot(self, seq_id: str) -> np.ndarray:
+        """(G,) float32 one-hot over :attr:`genres` (its width follows the genres kept)."""
+        out = np.zeros(len(self.genres), dtype=np.float32)
+        genre = self.sequence(seq_id).get("genre")
+        if genre in self.genres:
+            out[self.genres.index(genre)] = 1.0
+        return out
+
+    def measure_rows(
+        self, split: str | None = None, scheme: str = "crossmodal"
+    ) -> list[dict[str, Any]]:
+        """Measures-table rows of the sequences in ``split`` (all when None)."""
+        if not self._reader.has_table("measures"):
+            raise StoreError("this version has no measures table (run `dancedata segment`)")
+        wanted = set(self.seq_ids(split, scheme))
+        return [r for r in self.measures.to_pylist() if r["seq_id"] in wanted]
+
+    def iter_measures(
+        self,
+        split: str | None = None,
+        scheme: str = "crossmodal",
+        motion: str | None = "fact_motion_225",
+        audio: str | None = "fact_audio_35",
+    ) -> Iterator[MeasureWindow]:
+        """Every measure of the sequences in ``split``, with the chosen motion and audio views
+        sliced to the measure. With an audio view, measures not fully covered by audio are
+        left out."""
+        views: dict[str, np.ndarray] = {}
+        for row in self.measure_rows(split, scheme):
+            seq_id = row["seq_id"]
+            if seq_id not in views:
+                views.clear()
+                views[seq_id] = np.empty(0)
+                if motion:
+                    views["motion"] = self.view(seq_id, motion)
+                if audio:
+                    if self.audio_frames(seq_id) == 0:
+                        continue
+                    views["audio"] = self.view(seq_id, audio)
+            if audio and ("audio" not in views or views["audio"].shape[0] < row["frame_stop"]):
+                continue
+            s0, s1 = row["frame_start"], row["frame_stop"]
+            yield MeasureWindow(
+                seq_id=seq_id,
+                measure=row["measure"],
+                frame_start=s0,
+                frame_stop=s1,
+                motion=views["motion"][s0:s1] if motion else None,
+                audio=views["audio"][s0:s1] if audio else None,
+                genre_onehot=self.genre_onehot(seq_id),
+            )
+
+
+def open_store(path: str | Path, version: str | None = None) -> DanceStore:
+    """Open ``version`` (default: the latest committed) of the store at ``path``."""
+    return DanceStore(path, version)

@@ -1,0 +1,85 @@
+"""``dancedata segment``: the measures table, from each sequence's BPM and fps."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dancedata._version import __version__
+from dancedata.compute.measures import measure_bounds
+from dancedata.errors import InputError
+from dancedata.ingest.result import CommandResult
+from dancedata.store.checksums import fingerprint
+from dancedata.store.contract import build_table
+from dancedata.store.layout import StoreLayout
+from dancedata.store.reader import VersionReader
+from dancedata.store.writer import VersionWriter, already_done
+
+
+@dataclass
+class SegmentOptions:
+    beats_per_measure: int = 4
+    phase_frames: float = 0.0
+    version: str | None = None
+    wait_for_lock: bool = False
+
+    def config(self) -> dict[str, Any]:
+        return {
+            "beats_per_measure": self.beats_per_measure,
+            "phase_frames": self.phase_frames,
+            "formula": "fpm = 60/bpm*beats_per_measure*fps; "
+            "[floor(phase+k*fpm+0.5), floor(phase+(k+1)*fpm+0.5)), complete measures only",
+        }
+
+
+def measure_rows(sequences: list[dict[str, Any]], options: SegmentOptions) -> list[dict[str, Any]]:
+    """One row per complete measure of every sequence with a known BPM."""
+    rows: list[dict[str, Any]] = []
+    for seq in sequences:
+        bpm, fps = seq.get("bpm"), float(seq["fps"])
+        if bpm is None or not bpm > 0:
+            continue
+        bounds = measure_bounds(
+            int(seq["n_frames"]), float(bpm), fps, options.beats_per_measure, options.phase_frames
+        )
+        for k, (start, stop) in enumerate(bounds.tolist()):
+            rows.append(
+                {
+                    "seq_id": seq["seq_id"],
+                    "measure": k,
+                    "frame_start": start,
+                    "frame_stop": stop,
+                    "time_start": start / fps,
+                    "time_stop": stop / fps,
+                    "bpm": float(bpm),
+                }
+            )
+    return rows
+
+
+def segment(store: str | Path, options: SegmentOptions) -> CommandResult:
+    if options.beats_per_measure < 1:
+        raise InputError("--beats-per-measure must be at least 1")
+    layout = StoreLayout(store)
+    parent = layout.resolve(options.version)
+    reader = VersionReader(store, parent)
+    config = options.config()
+    fp = fingerprint("segment", config, [reader.manifest["fingerprint"]], __version__)
+    existing = already_done(store, fp, reader.manifest, "segment", config)
+    if existing is not None:
+        return CommandResult(version=existing, created=False)
+    rows = measure_rows(reader.table("sequences").to_pylist(), options)
+    with VersionWriter(
+        store,
+        command="segment",
+        config=config,
+        fingerprint=fp,
+        inputs=[{"path": parent, "bytes": 0, "sha256": reader.manifest["fingerprint"]}],
+        parent=parent,
+        wait_for_lock=options.wait_for_lock,
+    ) as version:
+        version.write_table("measures", build_table("measures", rows))
+        counts = {"measures": len(rows), "sequences": len({r["seq_id"] for r in rows})}
+        name = version.commit(counts=counts)
+    return CommandResult(version=name, created=True, counts=counts)

@@ -1,0 +1,110 @@
+"""Read one committed version: manifest, parquet tables, zarr arrays and group attrs."""
+
+from __future__ import annotations
+
+from functools import cached_property
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from dancedata.errors import StoreError
+from dancedata.store.layout import TABLE_FILES, ZARR_DIR, StoreLayout
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+    import zarr
+
+
+class VersionReader:
+    """Read-only access to ``STORE/versions/<version>`` (latest when ``version`` is None)."""
+
+    def __init__(self, store: str | Path, version: str | None = None) -> None:
+        self.layout = StoreLayout(store)
+        self.version = self.layout.resolve(version)
+        self.path = self.layout.version_dir(self.version)
+        self._tables: dict[str, pa.Table] = {}
+
+    @cached_property
+    def manifest(self) -> dict[str, Any]:
+        return self.layout.read_manifest(self.version)
+
+    @cached_property
+    def root(self) -> zarr.Group | None:
+        import zarr
+
+        path = self.path / ZARR_DIR
+        if not path.exists():
+            return None
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", category=UserWarning)
+            try:
+                return zarr.open_group(str(path), mode="r", use_consolidated=True)
+            except (ValueError, KeyError, FileNotFoundError):
+                return zarr.open_group(str(path), mode="r")
+
+    def has_table(self, name: str) -> bool:
+        return (self.path / TABLE_FILES[name]).is_file()
+
+    def table(self, name: str) -> pa.Table:
+        if name not in TABLE_FILES:
+            raise StoreError(f"unknown table {name!r}; known: {sorted(TABLE_FILES)}")
+        if name not in self._tables:
+            import pyarrow.parquet as pq
+
+            path = self.path / TABLE_FILES[name]
+            if not path.is_file():
+                raise StoreError(f"version {self.version} has no {name} table", self.path)
+            try:
+                self._tables[name] = pq.read_table(path)
+            except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
+                raise StoreError(f"unreadable table: {exc}", path) from None
+        return self._tables[name]
+
+    def has_array(self, name: str) -> bool:
+        root = self.root
+        if root is None:
+            return False
+        try:
+            node = root[name]
+        except KeyError:
+            return False
+        import zarr
+
+        return isinstance(node, zarr.Array)
+
+    def array(self, name: str) -> zarr.Array:
+        if not self.has_array(name):
+            raise StoreError(
+                f"version {self.version} has no array {name!r} (run featurize?)", self.path
+            )
+        return self.root[name]  # type: ignore[index]
+
+    def array_names(self) -> list[str]:
+        """Every array path in data.zarr, e.g. ``motion/trans``, sorted."""
+        root = self.root
+        if root is None:
+            return []
+        import zarr
+
+        names: list[str] = []
+
+        def walk(group: zarr.Group, prefix: str) -> None:
+            for key, node in group.members():
+                path = f"{prefix}{key}"
+                if isinstance(node, zarr.Group):
+                    walk(node, path + "/")
+                else:
+                    names.append(path)
+
+        walk(root, "")
+        return sorted(names)
+
+    def group_attrs(self, name: str) -> dict[str, Any]:
+        root = self.root
+        if root is None:
+            return {}
+        try:
+            return dict(root[name].attrs)
+        except KeyError:
+            return {}

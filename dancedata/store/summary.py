@@ -1,0 +1,120 @@
+"""What ``dancedata info`` reports about one version of a store."""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+from dancedata.store.layout import StoreLayout
+from dancedata.store.reader import VersionReader
+
+
+def lineage(layout: StoreLayout, version: str) -> list[dict[str, Any]]:
+    """Manifests from ``version`` back through its parents (newest first)."""
+    chain = []
+    current: str | None = version
+    seen: set[str] = set()
+    while current and current not in seen and current in layout.committed_versions():
+        seen.add(current)
+        manifest = layout.read_manifest(current)
+        chain.append(manifest)
+        current = manifest.get("parent")
+    return chain
+
+
+def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
+    reader = VersionReader(store, version)
+    manifest = reader.manifest
+    info: dict[str, Any] = {
+        "store": str(Path(store)),
+        "version": reader.version,
+        "latest": reader.layout.latest(),
+        "versions": reader.layout.committed_versions(),
+        "command": manifest.get("command"),
+        "created_at": manifest.get("created_at"),
+        "parent": manifest.get("parent"),
+        "skipped": len(manifest.get("skipped", [])),
+    }
+    if reader.has_table("sequences"):
+        sequences = reader.table("sequences").to_pylist()
+        info["sequences"] = len(sequences)
+        frames = sum(s["n_frames"] for s in sequences)
+        info["frames"] = frames
+        info["hours"] = round(sum(s["n_frames"] / s["fps"] for s in sequences) / 3600.0, 4)
+        info["sources"] = dict(Counter(s["source"] for s in sequences))
+        info["genres"] = dict(sorted(Counter(s["genre"] for s in sequences).items()))
+        info["bpms"] = sorted({s["bpm"] for s in sequences if s.get("bpm") is not None})
+        info["music_missing"] = sum(bool(s.get("music_missing")) for s in sequences)
+        info["audio_truncated_sequences"] = sum(
+            1 for s in sequences if (s.get("audio_truncated_frames") or 0) > 0
+        )
+    if reader.has_table("music"):
+        info["music_tracks"] = reader.table("music").num_rows
+    if reader.has_table("measures"):
+        info["measures"] = reader.table("measures").num_rows
+    if reader.has_table("splits"):
+        splits = Counter((r["scheme"], r["split"]) for r in reader.table("splits").to_pylist())
+        table: dict[str, dict[str, int]] = {}
+        for (scheme, split), n in sorted(splits.items()):
+            table.setdefault(scheme, {})[split] = n
+        info["splits_in_store"] = table
+    for manifest_ in lineage(reader.layout, reader.version):
+        if "splits" in manifest_.get("counts", {}):
+            info["split_files"] = manifest_["counts"]["splits"]
+            break
+    info["arrays"] = {
+        name: {"shape": list(reader.array(name).shape), "dtype": str(reader.array(name).dtype)}
+        for name in reader.array_names()
+    }
+    info["tables"] = {
+        name: reader.table(name).num_rows
+        for name in ("sequences", "music", "measures", "splits")
+        if reader.has_table(name)
+    }
+    return info
+
+
+def format_info(info: dict[str, Any]) -> str:
+    """Human-readable rendering of :func:`summarize`."""
+    lines = [
+        f"store     {info['store']}",
+        f"version   {info['version']} (latest {info['latest']}; {len(info['versions'])} "
+        f"committed) from `{info['command']}` at {info['created_at']}, parent {info['parent']}",
+    ]
+    if "sequences" in info:
+        lines.append(
+            f"sequences {info['sequences']} ({info['frames']} frames, {info['hours']:.3f} h); "
+            f"sources {info['sources']}"
+        )
+        lines.append(f"genres    {info['genres']}")
+        lines.append(f"tempi     {info['bpms']} BPM")
+        if info.get("music_missing"):
+            lines.append(f"music     missing for {info['music_missing']} sequences")
+        if info.get("audio_truncated_sequences"):
+            lines.append(
+                f"audio     longer than motion (truncated) in "
+                f"{info['audio_truncated_sequences']} sequences"
+            )
+    for key in ("music_tracks", "measures"):
+        if key in info:
+            lines.append(f"{key:<9} {info[key]}")
+    if "split_files" in info:
+        files = info["split_files"]
+        lines.append(f"ignore    {files.get('ignore_list', 0)} names in ignore_list.txt")
+        for scheme, splits in files.get("schemes", {}).items():
+            for split, c in splits.items():
+                lines.append(
+                    f"split     {scheme}/{split}: {c['listed']} listed, {c['ignored']} ignored, "
+                    f"{c['usable']} usable, {c['in_store']} in store"
+                )
+    if "splits_in_store" in info:
+        for scheme, splits in info["splits_in_store"].items():
+            lines.append(f"in store  {scheme}: " + ", ".join(f"{k} {v}" for k, v in splits.items()))
+    if info.get("skipped"):
+        lines.append(f"skipped   {info['skipped']} inputs (see manifest.json)")
+    lines.append("arrays")
+    for name, spec in info["arrays"].items():
+        lines.append(f"  {name:<28} {tuple(spec['shape'])} {spec['dtype']}")
+    lines.append("tables    " + ", ".join(f"{k} ({v} rows)" for k, v in info["tables"].items()))
+    return "\n".join(lines)

@@ -1,0 +1,131 @@
+"""The command line: fast start-up, teaching --help, one-line errors, JSON summaries."""
+
+from __future__ import annotations
+
+import json
+import pickle
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from dancedata.store.layout import StoreLayout
+from dancedata.synth.aist import synth_aist
+from tests.helpers import run_cli
+
+
+def _modules_loaded_by(argv: list[str]) -> set[str]:
+    code = (
+        "import sys\n"
+        f"sys.argv = {['dancedata', *argv]!r}\n"
+        "from dancedata.cli.main import main\n"
+        "try:\n    main()\nexcept SystemExit:\n    pass\n"
+        "print('MODULES:' + ' '.join(sorted(sys.modules)))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    marker = out.stdout.rindex("MODULES:")
+    return set(out.stdout[marker + len("MODULES:") :].split())
+
+
+@pytest.mark.parametrize(
+    "argv", [["--help"], ["--version"], ["ingest", "--help"], ["featurize", "--help"]]
+)
+def test_help_and_version_do_not_import_heavy_libraries(argv):
+    loaded = _modules_loaded_by(argv)
+    for heavy in ("librosa", "zarr", "numba", "torch", "pyarrow", "scipy", "cv2"):
+        assert heavy not in loaded, f"{heavy} imported by dancedata {' '.join(argv)}"
+
+
+def test_version_prints_package_version():
+    import dancedata
+
+    assert run_cli("--version").stdout.strip() == f"dancedata {dancedata.__version__}"
+
+
+def test_help_lists_every_contract_command():
+    out = run_cli("--help").stdout
+    for command in (
+        "synth",
+        "ingest",
+        "featurize",
+        "segment",
+        "info",
+        "versions",
+        "validate",
+        "export",
+    ):
+        assert command in out
+
+
+def test_missing_input_is_one_clear_line(tmp_path):
+    proc = run_cli(
+        "ingest", "aist", str(tmp_path / "nope"), "--store", str(tmp_path / "s"), check=False
+    )
+    assert proc.returncode == 1
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "nope" in lines[0] and "no such directory" in lines[0]
+    assert "Traceback" not in proc.stderr
+
+
+def test_bad_pickle_fails_clearly_and_leaves_store_untouched(tmp_path):
+    raw, store = tmp_path / "raw", tmp_path / "store"
+    synth_aist(raw, n_sequences=3, seed=0)
+    run_cli("ingest", "aist", str(raw), "--store", str(store), "-q")
+    bad = sorted((raw / "motions").iterdir())[0]
+    bad.write_bytes(pickle.dumps({"smpl_poses": np.zeros((10, 70), np.float32)}))
+    proc = run_cli("ingest", "aist", str(raw), "--store", str(store), "-q", check=False)
+    assert proc.returncode == 1
+    assert bad.name in proc.stderr and "smpl_poses" in proc.stderr
+    layout = StoreLayout(store)
+    assert layout.committed_versions() == ["v1"] and layout.temp_dirs() == []
+    # With --on-error skip the good sequences go in and the bad one is recorded.
+    proc = run_cli(
+        "ingest", "aist", str(raw), "--store", str(store), "-q", "--on-error", "skip", "--json"
+    )
+    summary = json.loads(proc.stdout)
+    assert summary["version"] == "v2" and summary["counts"]["sequences"] == 2
+    skipped = layout.read_manifest("v2")["skipped"]
+    assert [s["path"] for s in skipped] == [str(bad)]
+    assert "shape (10, 70)" in skipped[0]["error"]
+
+
+def test_cli_pipeline_json_summaries(tmp_path):
+    raw, store = tmp_path / "raw", tmp_path / "store"
+    run_cli("synth", "aist", str(raw), "--sequences", "3", "--seed", "1", "-q")
+    assert (
+        json.loads(
+            run_cli("ingest", "aist", str(raw), "--store", str(store), "-q", "--json").stdout
+        )["version"]
+        == "v1"
+    )
+    summary = json.loads(run_cli("segment", str(store), "--json", "-q").stdout)
+    assert summary["created"] and summary["counts"]["measures"] > 0
+    again = run_cli("segment", str(store), "-q").stdout
+    assert "already holds" in again and "v2" in again
+    run_cli("validate", str(store))
+    info = json.loads(run_cli("info", str(store), "--json").stdout)
+    assert info["sequences"] == 3 and info["version"] == "v2"
+    assert "v1" in run_cli("versions", str(store)).stdout
+
+
+def test_validate_flags_a_broken_store(tmp_path):
+    raw, store = tmp_path / "raw", tmp_path / "store"
+    synth_aist(raw, n_sequences=3, seed=0)
+    run_cli("ingest", "aist", str(raw), "--store", str(store), "-q")
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    path = store / "versions" / "v1" / "sequences.parquet"
+    table = pq.read_table(path)
+    pq.write_table(
+        table.set_column(
+            table.schema.get_field_index("n_frames"),
+            "n_frames",
+            pa.array([1] * table.num_rows, pa.int64()),
+        ),
+        path,
+    )
+    proc = run_cli("validate", str(store), check=False)
+    assert proc.returncode == 1
+    assert "frame range != n_frames" in proc.stderr
