@@ -1,0 +1,311 @@
+"""Read a folder of OpenPose per-frame ``*_keypoints.json`` files into ragged arrays.
+
+OpenPose writes one JSON file per video frame, named ``<stem>_<frame:012d>_keypoints.json``, each
+holding ``{"version": 1.3, "people": [{"person_id": [-1], "pose_keypoints_2d": [x, y, c, ...]}]}``.
+Coordinates are pixels in the source video (origin top-left, y down); ``c`` is the detector's
+confidence in [0, 1], and an undetected joint is written as ``0, 0, 0``.
+
+The frame index is the trailing number of the file name, taken as the index of the *video* frame
+(OpenPose numbers from 0). Gaps in the numbering are frames with no file: they are kept as missing
+frames (``present[f] == False``), never closed up, so pose frame ``f`` stays at time ``f / fps``.
+
+People are ragged (0..n per frame), so they are returned concatenated, with an offsets index:
+the people of frame ``f`` are rows ``frame_offsets[f]:frame_offsets[f + 1]`` of ``keypoints``.
+This is the layout a Zarr v3 store can hold without ragged arrays.
+
+The body model is detected from the keypoint count: 25 joints = BODY_25, 18 = COCO (OpenPose's
+18-joint COCO model with a synthetic neck). Raw values are kept as written (zeros for undetected
+joints); turning them into NaN + mask is the tracker's job (:mod:`dancedata.compute.pose_tracking`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dancedata.errors import InputError
+
+_FILE_RE = re.compile(r"^(?P<prefix>.*?)_?(?P<index>\d+)_keypoints\.json$")
+
+
+@dataclass(frozen=True)
+class Skeleton:
+    """A 2-d keypoint layout: joint names and a parent per joint (-1 for the root).
+
+    ``parents`` form a tree used for drawing bones and for forward-kinematics-free checks
+    (bone lengths); it is not the detector's PAF pair list.
+    """
+
+    name: str
+    joints: tuple[str, ...]
+    parents: tuple[int, ...]
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    def bones(self) -> list[tuple[int, int]]:
+        """(parent, child) index pairs, one per non-root joint."""
+        return [(p, c) for c, p in enumerate(self.parents) if p >= 0]
+
+    def to_dict(self) -> dict:
+        """The ``skeleton`` attribute of the contract: ``name``, ``joints``, ``parents``."""
+        return {"name": self.name, "joints": list(self.joints), "parents": list(self.parents)}
+
+
+# OpenPose BODY_25 (output order of poseParameters.cpp), rooted at MidHip.
+BODY_25 = Skeleton(
+    name="openpose_body25",
+    joints=(
+        "Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist",
+        "MidHip", "RHip", "RKnee", "RAnkle", "LHip", "LKnee", "LAnkle", "REye", "LEye", "REar",
+        "LEar", "LBigToe", "LSmallToe", "LHeel", "RBigToe", "RSmallToe", "RHeel",
+    ),
+    parents=(1, 8, 1, 2, 3, 1, 5, 6, -1, 8, 9, 10, 8, 12, 13, 0, 0, 15, 16, 14, 19, 14, 11, 22,
+             11),
+)
+
+# OpenPose COCO-18 (COCO-17 plus a Neck at index 1), rooted at Neck.
+COCO_18 = Skeleton(
+    name="openpose_coco18",
+    joints=(
+        "Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist",
+        "RHip", "RKnee", "RAnkle", "LHip", "LKnee", "LAnkle", "REye", "LEye", "REar", "LEar",
+    ),
+    parents=(1, -1, 1, 2, 3, 1, 5, 6, 1, 8, 9, 1, 11, 12, 0, 0, 14, 15),
+)
+
+SKELETONS_BY_COUNT: dict[int, Skeleton] = {25: BODY_25, 18: COCO_18}
+SKELETONS_BY_NAME: dict[str, Skeleton] = {"BODY_25": BODY_25, "COCO": COCO_18, "COCO_18": COCO_18}
+
+
+@dataclass(frozen=True)
+class OpenPoseFrames:
+    """All people of all frames of one OpenPose output folder.
+
+    Attributes:
+        folder: the folder read.
+        skeleton: BODY_25 or COCO-18.
+        version: the ``version`` field of the first file (None when absent).
+        keypoints: (P, J, 3) float32, all people of all frames concatenated: x, y in pixels,
+            confidence in [0, 1]; undetected joints as OpenPose wrote them (0, 0, 0).
+        person_ids: (P,) int64, OpenPose ``person_id`` (-1 when OpenPose did not track).
+        frame_offsets: (F + 1,) int64; people of frame f are rows ``frame_offsets[f]:[f + 1]``.
+        present: (F,) bool, True where a JSON file exists for the frame (a file with an empty
+            ``people`` list is present with zero people).
+        files: (F,) the file name of each frame, "" for missing frames.
+    """
+
+    folder: Path
+    skeleton: Skeleton
+    version: str | None
+    keypoints: np.ndarray
+    person_ids: np.ndarray
+    frame_offsets: np.ndarray
+    present: np.ndarray
+    files: tuple[str, ...]
+
+    @property
+    def n_frames(self) -> int:
+        """Frames from 0 to the highest numbered file, missing ones included."""
+        return int(self.present.shape[0])
+
+    @property
+    def n_people(self) -> np.ndarray:
+        """(F,) int64 number of people in each frame."""
+        return np.diff(self.frame_offsets)
+
+    def frame_of_row(self) -> np.ndarray:
+        """(P,) int64 frame index of each row of ``keypoints``."""
+        return np.repeat(np.arange(self.n_frames, dtype=np.int64), self.n_people)
+
+    def people(self, frame: int) -> tuple[np.ndarray, np.ndarray]:
+        """(n, J, 3) keypoints and (n,) person ids of one frame."""
+        lo, hi = int(self.frame_offsets[frame]), int(self.frame_offsets[frame + 1])
+        return self.keypoints[lo:hi], self.person_ids[lo:hi]
+
+
+def list_keypoint_files(folder: str | Path, prefix: str | None = None) -> dict[int, Path]:
+    """Map frame index → file for every ``*_keypoints.json`` in ``folder`` (not recursive).
+
+    ``prefix`` keeps only files whose name before the frame number equals it (for folders
+    holding several videos' output; ``prefix="video"`` keeps ``video_000000000012_keypoints.json``).
+    Two files with the same frame index is an error: the folder mixes videos.
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise InputError("not a folder of OpenPose JSON files", root)
+    found: dict[int, Path] = {}
+    for path in root.iterdir():
+        if not path.name.endswith("_keypoints.json") or not path.is_file():
+            continue
+        match = _FILE_RE.match(path.name)
+        if match is None:
+            raise InputError("no frame number before '_keypoints.json' in the file name", path)
+        if prefix is not None and match.group("prefix") != prefix:
+            continue
+        index = int(match.group("index"))
+        if index in found:
+            raise InputError(
+                f"frame {index} also comes from {found[index].name}: the folder mixes the output "
+                "of several videos; pass a prefix to choose one",
+                path,
+            )
+        found[index] = path
+    if not found:
+        what = f"with prefix {prefix!r} " if prefix is not None else ""
+        raise InputError(f"no *_keypoints.json files {what}in the folder", root)
+    return dict(sorted(found.items()))
+
+
+def _person_id(person: dict, path: Path) -> int:
+    raw = person.get("person_id", -1)
+    if isinstance(raw, list):  # OpenPose >= 1.3 writes [id]
+        raw = raw[0] if raw else -1
+    if isinstance(raw, bool) or not isinstance(raw, int | float) or not math.isfinite(raw):
+        raise InputError(f"person_id {raw!r} is not an integer", path)
+    return int(raw)
+
+
+def _pose_values(person: dict, path: Path, k: int) -> list:
+    for key in ("pose_keypoints_2d", "pose_keypoints"):  # the second is OpenPose < 1.2
+        if key in person:
+            values = person[key]
+            break
+    else:
+        raise InputError(f"person {k} has no 'pose_keypoints_2d'", path)
+    if not isinstance(values, list):
+        raise InputError(f"person {k}: 'pose_keypoints_2d' is not a list", path)
+    return values
+
+
+def parse_keypoints_json(data: bytes, path: Path) -> tuple[str | None, list[int], list[list]]:
+    """Parse one file's bytes → (version, person ids, flat keypoint lists); errors name ``path``."""
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text (byte {exc.start})", path) from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        hint = " (file truncated?)" if exc.pos >= len(text.rstrip()) - 1 else ""
+        raise InputError(
+            f"not valid JSON{hint}: {exc.msg} at line {exc.lineno} column {exc.colno}", path
+        ) from None
+    if not isinstance(doc, dict):
+        raise InputError("top level is not a JSON object", path)
+    if "people" not in doc:
+        raise InputError("no 'people' list (not an OpenPose keypoints file?)", path)
+    people = doc["people"]
+    if not isinstance(people, list):
+        raise InputError("'people' is not a list", path)
+    version = doc.get("version")
+    ids: list[int] = []
+    flats: list[list] = []
+    for k, person in enumerate(people):
+        if not isinstance(person, dict):
+            raise InputError(f"person {k} is not a JSON object", path)
+        ids.append(_person_id(person, path))
+        flats.append(_pose_values(person, path, k))
+    return (None if version is None else str(version)), ids, flats
+
+
+def _to_joints(flat: list, n_joints: int, path: Path, k: int) -> np.ndarray:
+    if len(flat) != 3 * n_joints:
+        raise InputError(
+            f"person {k} has {len(flat)} pose values, expected {3 * n_joints} "
+            f"({n_joints} joints × x, y, c)",
+            path,
+        )
+    try:
+        arr = np.asarray(flat, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"person {k}: pose values are not all numbers", path) from None
+    if arr.ndim != 1:
+        raise InputError(f"person {k}: pose values are not a flat list of numbers", path)
+    return arr.reshape(n_joints, 3)
+
+
+def _detect_skeleton(flat: list, path: Path) -> Skeleton:
+    if len(flat) % 3 == 0 and len(flat) // 3 in SKELETONS_BY_COUNT:
+        return SKELETONS_BY_COUNT[len(flat) // 3]
+    raise InputError(
+        f"{len(flat)} pose values: expected 75 (BODY_25, 25 joints) or 54 (COCO, 18 joints)", path
+    )
+
+
+def read_openpose_folder(
+    folder: str | Path, prefix: str | None = None, model: str | None = None
+) -> OpenPoseFrames:
+    """Read every ``*_keypoints.json`` of ``folder`` (see the module docstring for the layout).
+
+    Args:
+        folder: OpenPose ``--write_json`` output folder.
+        prefix: keep only files whose name before the frame number equals this.
+        model: "BODY_25" or "COCO" to require a body model; default: detect it from the keypoint
+            count of the first person found (needed when no frame has anyone in it).
+
+    Raises:
+        InputError: naming the file, for a missing folder, no files, a non-UTF-8 or truncated or
+            otherwise invalid JSON file, a missing ``people`` list, or a keypoint count that is not
+            BODY_25/COCO or differs from the other files.
+    """
+    root = Path(folder)
+    files = list_keypoint_files(root, prefix)
+    skeleton: Skeleton | None = None
+    if model is not None:
+        if model.upper() not in SKELETONS_BY_NAME:
+            raise InputError(f"unknown OpenPose model {model!r}; use BODY_25 or COCO", root)
+        skeleton = SKELETONS_BY_NAME[model.upper()]
+    n_frames = max(files) + 1
+    present = np.zeros(n_frames, dtype=bool)
+    counts = np.zeros(n_frames, dtype=np.int64)
+    names = [""] * n_frames
+    rows: list[np.ndarray] = []
+    ids_all: list[int] = []
+    version: str | None = None
+    first = True
+    for index, path in files.items():
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise InputError(f"cannot read: {exc.strerror}", path) from None
+        file_version, ids, flats = parse_keypoints_json(data, path)
+        if first:
+            version, first = file_version, False
+        for k, flat in enumerate(flats):
+            if skeleton is None:
+                skeleton = _detect_skeleton(flat, path)
+            rows.append(_to_joints(flat, skeleton.n_joints, path, k))
+        ids_all.extend(ids)
+        present[index] = True
+        counts[index] = len(flats)
+        names[index] = path.name
+    if skeleton is None:
+        raise InputError(
+            "no person in any frame, so the body model cannot be told; pass model='BODY_25' or "
+            "'COCO'",
+            root,
+        )
+    keypoints = (
+        np.stack(rows).astype(np.float32)
+        if rows
+        else np.zeros((0, skeleton.n_joints, 3), np.float32)
+    )
+    offsets = np.zeros(n_frames + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    return OpenPoseFrames(
+        folder=root,
+        skeleton=skeleton,
+        version=version,
+        keypoints=keypoints,
+        person_ids=np.asarray(ids_all, dtype=np.int64),
+        frame_offsets=offsets,
+        present=present,
+        files=tuple(names),
+    )
