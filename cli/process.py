@@ -18,8 +18,12 @@ def featurize(
         typer.Option(help="Motion representations, comma-separated: rotmat,euler,quat,rot6d."),
     ] = "rotmat,euler,quat,rot6d",
     euler_order: Annotated[
-        str, typer.Option(help="scipy Euler order: upper case intrinsic, lower case extrinsic.")
-    ] = "XYZ",
+        str | None,
+        typer.Option(
+            help="scipy Euler order for every joint: upper case intrinsic, lower case extrinsic. "
+            "Default: each joint's own order where the rig has one (BVH), else XYZ."
+        ),
+    ] = None,
     motion: Annotated[bool, typer.Option(help="Compute motion representations.")] = True,
     audio: Annotated[bool, typer.Option(help="Compute audio features (once per track).")] = True,
     version: VersionOpt = None,

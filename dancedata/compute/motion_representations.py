@@ -20,7 +20,10 @@ from dancedata.compute.rotations import (
 REPRESENTATIONS: tuple[str, ...] = ("rotmat", "euler", "quat", "rot6d")
 
 
-def representation_attrs(name: str, euler_order: str) -> dict[str, str]:
+EulerOrder = str | list[str]
+
+
+def representation_attrs(name: str, euler_order: EulerOrder) -> dict[str, object]:
     """The attrs the contract requires on each stored representation."""
     return {
         "rotmat": {"units": "1"},
@@ -39,8 +42,22 @@ def row_shape(name: str, n_joints: int) -> tuple[int, ...]:
     }[name]
 
 
+def euler_per_joint(rotmat: np.ndarray, euler_order: EulerOrder) -> np.ndarray:
+    """(F, J, 3, 3) → (F, J, 3) Euler angles in radians; ``euler_order`` is one scipy order for
+    every joint or a list with each joint's own order (BVH rigs mix them)."""
+    if isinstance(euler_order, str):
+        return rotmat_to_euler(rotmat, euler_order)
+    if len(euler_order) != rotmat.shape[1]:
+        raise ValueError(f"{len(euler_order)} Euler orders for {rotmat.shape[1]} joints")
+    out = np.empty(rotmat.shape[:2] + (3,))
+    for order in set(euler_order):
+        joints = [j for j, o in enumerate(euler_order) if o == order]
+        out[:, joints] = rotmat_to_euler(rotmat[:, joints], order)
+    return out
+
+
 def representations_from_axis_angle(
-    axis_angle: np.ndarray, names: tuple[str, ...] | list[str], euler_order: str
+    axis_angle: np.ndarray, names: tuple[str, ...] | list[str], euler_order: EulerOrder
 ) -> dict[str, np.ndarray]:
     """(F, J, 3) axis-angle (radians) → the requested representations, float64.
 
@@ -53,7 +70,7 @@ def representations_from_axis_angle(
         if name == "rotmat":
             out[name] = rotmat
         elif name == "euler":
-            out[name] = rotmat_to_euler(rotmat, euler_order)
+            out[name] = euler_per_joint(rotmat, euler_order)
         elif name == "quat":
             out[name] = rotmat_to_quat(rotmat)
         elif name == "rot6d":

@@ -1,6 +1,7 @@
 """``dancedata featurize``: motion representations and audio features into a new version.
 
-Motion is processed in blocks of one zarr chunk (CHUNK_FRAMES frames), so memory stays bounded
+Motion is processed in batches of whole consecutive sequences of about one zarr chunk
+(CHUNK_FRAMES frames) each, so memory stays bounded, families may look at neighbouring frames,
 and every output chunk is written once. Audio features are computed once per music track (never
 once per sequence) and the music table's frame ranges are rewritten from the actual feature
 lengths.
@@ -15,17 +16,15 @@ from typing import Any
 import numpy as np
 
 from dancedata._version import __version__
-from dancedata.compute.audio_features import FACT_FEATURES, AudioFeatureConfig, fact_features
-from dancedata.compute.motion_representations import (
-    REPRESENTATIONS,
-    continue_quat_signs,
-    representation_attrs,
-    representations_from_axis_angle,
-    row_shape,
-)
+from dancedata.compute.audio_features import AudioFeatureConfig
+from dancedata.compute.motion_representations import REPRESENTATIONS
 from dancedata.errors import InputError, StoreError
 from dancedata.ingest.result import CommandResult
 from dancedata.io.audio import load_mono
+from dancedata.pipeline.audio_families import DEFAULT_FAMILIES, FAMILIES, AudioFamily
+from dancedata.pipeline.motion_families import DEFAULT_FAMILIES as DEFAULT_MOTION_FAMILIES
+from dancedata.pipeline.motion_families import FAMILIES as MOTION_FAMILIES
+from dancedata.pipeline.motion_families import MotionBatch, MotionFamily, MotionSettings
 from dancedata.progress import progress
 from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter
 from dancedata.store.checksums import fingerprint
@@ -34,13 +33,7 @@ from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
 from dancedata.store.writer import VersionWriter, already_done
 
-AUDIO_DTYPES = {
-    "onset_env": np.float32,
-    "mfcc": np.float32,
-    "chroma_cens": np.float32,
-    "onset_peaks": np.uint8,
-    "beats": np.uint8,
-}
+DEFAULT_EULER_ORDER = "XYZ"
 
 
 @dataclass
@@ -50,29 +43,58 @@ class FeaturizeOptions:
     motion: bool = True
     audio: bool = True
     representations: list[str] = field(default_factory=lambda: list(REPRESENTATIONS))
-    euler_order: str = "XYZ"
+    # None: each joint's own order from the motion attrs (BVH rigs), else XYZ (intrinsic).
+    euler_order: str | None = None
+    motion_families: list[str] = field(default_factory=lambda: list(DEFAULT_MOTION_FAMILIES))
+    audio_families: list[str] = field(default_factory=lambda: list(DEFAULT_FAMILIES))
     audio_config: AudioFeatureConfig | None = None  # default: derived from the motion fps
     version: str | None = None  # parent version; default latest
     wait_for_lock: bool = False
 
+    def motion_settings(self) -> MotionSettings:
+        return MotionSettings(
+            representations=tuple(self.representations),
+            euler_order=self.euler_order or DEFAULT_EULER_ORDER,
+        )
+
     def config(self, audio_cfg: AudioFeatureConfig | None) -> dict[str, Any]:
+        """Settings that change the data; ``euler_order`` must be resolved first."""
+        settings = self.motion_settings()
         return {
             "motion": self.motion,
-            "representations": sorted(self.representations) if self.motion else [],
-            "euler_order": self.euler_order,
+            "motion_families": (
+                {n: MOTION_FAMILIES[n].config(settings) for n in sorted(self.motion_families)}
+                if self.motion
+                else {}
+            ),
             "audio": audio_cfg.as_dict() if (self.audio and audio_cfg) else None,
-            "audio_features": list(FACT_FEATURES) if self.audio else [],
+            "audio_families": (
+                {name: FAMILIES[name].config() for name in sorted(self.audio_families)}
+                if self.audio
+                else {}
+            ),
         }
 
 
 def _validate(options: FeaturizeOptions) -> None:
+    unknown_motion = sorted(set(options.motion_families) - set(MOTION_FAMILIES))
+    if unknown_motion:
+        raise InputError(
+            f"unknown motion feature family {unknown_motion}; choose from {sorted(MOTION_FAMILIES)}"
+        )
+    unknown_families = sorted(set(options.audio_families) - set(FAMILIES))
+    if unknown_families:
+        raise InputError(
+            f"unknown audio feature family {unknown_families}; choose from {sorted(FAMILIES)}"
+        )
     unknown = sorted(set(options.representations) - set(REPRESENTATIONS))
     if unknown:
         raise InputError(f"unknown representation(s) {unknown}; choose from {REPRESENTATIONS}")
     try:
         from scipy.spatial.transform import Rotation
 
-        Rotation.identity().as_euler(options.euler_order)
+        if options.euler_order is not None:
+            Rotation.identity().as_euler(options.euler_order)
     except ValueError:
         raise InputError(
             f"invalid Euler order {options.euler_order!r}: three axes from x, y, z; upper case "
@@ -86,7 +108,10 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
     layout = StoreLayout(store)
     parent = layout.resolve(options.version)
     reader = VersionReader(store, parent)
-    fps = float(reader.group_attrs("motion").get("fps", 60.0))
+    motion_attrs = reader.group_attrs("motion")
+    fps = float(motion_attrs.get("fps", 60.0))
+    if options.euler_order is None:
+        options.euler_order = motion_attrs.get("euler_orders") or DEFAULT_EULER_ORDER
     audio_cfg = options.audio_config or AudioFeatureConfig(fps=fps)
     if options.audio and abs(audio_cfg.fps - fps) > 1e-9:
         raise InputError(f"audio fps {audio_cfg.fps} differs from the motion fps {fps}")
@@ -96,8 +121,17 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
     if existing is not None:
         return CommandResult(version=existing, created=False)
 
-    motion_arrays = [f"motion/{r}" for r in options.representations] if options.motion else []
-    audio_arrays = [f"audio/{a}" for a in FACT_FEATURES] if options.audio else []
+    motion_families = (
+        [MOTION_FAMILIES[name] for name in options.motion_families] if options.motion else []
+    )
+    n_joints = reader.array("motion/axis_angle").shape[1] if options.motion else 0
+    motion_arrays = [
+        f"motion/{spec.path}"
+        for family in motion_families
+        for spec in family.arrays(n_joints, options.motion_settings())
+    ]
+    families = [FAMILIES[name] for name in options.audio_families] if options.audio else []
+    audio_arrays = [f"audio/{spec.path}" for f in families for spec in f.arrays(audio_cfg)]
     with VersionWriter(
         store,
         command="featurize",
@@ -111,70 +145,71 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
             version.remove_array(name)
         counts: dict[str, Any] = {}
         if options.motion:
-            counts["motion_frames"] = _featurize_motion(reader, version, options)
+            counts["motion_frames"] = _featurize_motion(
+                reader, version, motion_families, options.motion_settings()
+            )
         if options.audio:
-            counts.update(_featurize_audio(reader, version, audio_cfg))
+            counts.update(_featurize_audio(reader, version, audio_cfg, families))
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts)
 
 
+def sequence_batches(
+    starts: np.ndarray, stops: np.ndarray, target_frames: int = CHUNK_FRAMES
+) -> list[tuple[int, int]]:
+    """Group consecutive sequences into batches of whole sequences of about ``target_frames``
+    frames: (first sequence index, stop sequence index) pairs covering all sequences."""
+    batches: list[tuple[int, int]] = []
+    first = 0
+    for i in range(len(starts)):
+        if stops[i] - starts[first] >= target_frames or i == len(starts) - 1:
+            batches.append((first, i + 1))
+            first = i + 1
+    return batches
+
+
 def _featurize_motion(
-    reader: VersionReader, version: VersionWriter, options: FeaturizeOptions
+    reader: VersionReader,
+    version: VersionWriter,
+    families: list[MotionFamily],
+    settings: MotionSettings,
 ) -> int:
     if not reader.has_array("motion/axis_angle"):
         raise StoreError("no motion/axis_angle to derive rotations from", reader.path)
-    source = reader.array("motion/axis_angle")
-    n_frames, n_joints = source.shape[0], source.shape[1]
+    axis_angle, trans = reader.array("motion/axis_angle"), reader.array("motion/trans")
+    n_joints = axis_angle.shape[1]
+    attrs = reader.group_attrs("motion")
     sequences = reader.table("sequences")
     starts = np.asarray(sequences.column("frame_start").to_numpy(), dtype=np.int64)
     stops = np.asarray(sequences.column("frame_stop").to_numpy(), dtype=np.int64)
     group = version.zarr_group()["motion"]
     writers = {
-        name: FrameArrayWriter(
-            group,
-            name,
-            row_shape(name, n_joints),
-            np.float32,
-            attrs=representation_attrs(name, options.euler_order),
-        )
-        for name in options.representations
+        spec.path: FrameArrayWriter(group, spec.path, spec.row_shape, spec.dtype, attrs=spec.attrs)
+        for family in families
+        for spec in family.arrays(n_joints, settings)
     }
-    last_quat: np.ndarray | None = None  # (J, 4) last frame of the previous block
-    blocks = range(0, n_frames, CHUNK_FRAMES)
-    for b0 in progress(blocks, "featurize motion", total=len(blocks), unit="chunk"):
-        b1 = min(b0 + CHUNK_FRAMES, n_frames)
-        block = np.asarray(source[b0:b1], dtype=np.float64)
-        reps = representations_from_axis_angle(block, options.representations, options.euler_order)
-        if "quat" in reps:
-            reps["quat"] = _continuous_quat_block(reps["quat"], b0, b1, starts, stops, last_quat)
-            last_quat = reps["quat"][-1]
-        for name, values in reps.items():
-            writers[name].append(values.astype(np.float32))
+    batches = sequence_batches(starts, stops)
+    for first, stop in progress(batches, "featurize motion", unit="batch"):
+        f0, f1 = int(starts[first]), int(stops[stop - 1])
+        batch = MotionBatch(
+            axis_angle=np.asarray(axis_angle[f0:f1], dtype=np.float64),
+            trans=np.asarray(trans[f0:f1], dtype=np.float64),
+            bounds=np.stack([starts[first:stop] - f0, stops[first:stop] - f0], axis=1),
+            attrs=attrs,
+        )
+        for family in families:
+            for path, values in family.compute(batch, settings).items():
+                writers[path].append(values)
     for writer in writers.values():
         writer.close()
-    return int(n_frames)
-
-
-def _continuous_quat_block(
-    quat: np.ndarray,
-    b0: int,
-    b1: int,
-    starts: np.ndarray,
-    stops: np.ndarray,
-    last_quat: np.ndarray | None,
-) -> np.ndarray:
-    """Sign continuity within each sequence's part of the block [b0, b1)."""
-    out = quat.copy()
-    overlapping = np.nonzero((starts < b1) & (stops > b0))[0]
-    for i in overlapping:
-        s0, s1 = max(starts[i], b0), min(stops[i], b1)
-        previous = last_quat if (starts[i] < b0 and last_quat is not None) else None
-        out[s0 - b0 : s1 - b0] = continue_quat_signs(quat[s0 - b0 : s1 - b0], previous)
-    return out
+    return int(axis_angle.shape[0])
 
 
 def _featurize_audio(
-    reader: VersionReader, version: VersionWriter, cfg: AudioFeatureConfig
+    reader: VersionReader,
+    version: VersionWriter,
+    cfg: AudioFeatureConfig,
+    families: list[AudioFamily],
 ) -> dict[str, Any]:
     if not reader.has_table("music"):
         return {"music_tracks": 0}
@@ -186,21 +221,23 @@ def _featurize_audio(
             "sr": cfg.sr,
             "hop_length": cfg.hop_length,
             "n_fft": cfg.n_fft,
-            "recipe": "FACT (AIST++ baselines)",
-            "beat_tightness": cfg.beat_tightness,
+            "families": [f.name for f in families],
         }
     )
+    specs = [spec for family in families for spec in family.arrays(cfg)]
     writers = {
-        name: FrameArrayWriter(audio, name, _audio_row_shape(name, cfg), AUDIO_DTYPES[name])
-        for name in FACT_FEATURES
+        spec.path: FrameArrayWriter(audio, spec.path, spec.row_shape, spec.dtype, attrs=spec.attrs)
+        for spec in specs
     }
     start = 0
     for row in progress(music, "featurize audio", unit="track"):
         y = load_mono(row["path"], cfg.sr)
-        features = fact_features(y, row["bpm"], cfg)
-        n = next(iter(features.values())).shape[0]
-        for name, values in features.items():
-            writers[name].append(values)
+        features: dict[str, np.ndarray] = {}
+        for family in families:
+            features.update(family.compute(y, row["bpm"], cfg))
+        n = min(values.shape[0] for values in features.values())
+        for path, writer in writers.items():
+            writer.append(features[path][:n])
         row["frame_start"], row["frame_stop"] = start, start + n
         start += n
     for writer in writers.values():
@@ -208,10 +245,6 @@ def _featurize_audio(
     version.write_table("music", build_table("music", music))
     _update_sequence_audio_frames(reader, version, music)
     return {"music_tracks": len(music), "audio_frames": start}
-
-
-def _audio_row_shape(name: str, cfg: AudioFeatureConfig) -> tuple[int, ...]:
-    return {"mfcc": (cfg.n_mfcc,), "chroma_cens": (cfg.n_chroma,)}.get(name, ())
 
 
 def _update_sequence_audio_frames(
