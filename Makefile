@@ -29,6 +29,9 @@ pipeline: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q
 
+bench: $(STAMP)
+	$(PY) bench/run.py $(BENCH)
+
 lint: $(STAMP)
 	$(BIN)/ruff check .
 

@@ -18,13 +18,18 @@ import numpy as np
 from dancedata._version import __version__
 from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.compute.motion_representations import REPRESENTATIONS
-from dancedata.errors import InputError, StoreError
+from dancedata.errors import InputError
 from dancedata.ingest.result import CommandResult
 from dancedata.io.audio import load_mono
 from dancedata.pipeline.audio_families import DEFAULT_FAMILIES, FAMILIES, AudioFamily
+from dancedata.pipeline.motion_families import (
+    BASE_ARRAYS,
+    MotionBatch,
+    MotionFamily,
+    MotionSettings,
+)
 from dancedata.pipeline.motion_families import DEFAULT_FAMILIES as DEFAULT_MOTION_FAMILIES
 from dancedata.pipeline.motion_families import FAMILIES as MOTION_FAMILIES
-from dancedata.pipeline.motion_families import MotionBatch, MotionFamily, MotionSettings
 from dancedata.progress import progress
 from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter
 from dancedata.store.checksums import fingerprint
@@ -121,10 +126,14 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
     if existing is not None:
         return CommandResult(version=existing, created=False)
 
-    motion_families = (
+    requested = (
         [MOTION_FAMILIES[name] for name in options.motion_families] if options.motion else []
     )
-    n_joints = reader.array("motion/axis_angle").shape[1] if options.motion else 0
+    motion_families = [
+        f for f in requested if all(reader.has_array(f"motion/{r}") for r in f.requires)
+    ]
+    absent_families = [f for f in requested if f not in motion_families]
+    n_joints = _skeleton_joints(reader)
     motion_arrays = [
         f"motion/{spec.path}"
         for family in motion_families
@@ -146,8 +155,12 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
         counts: dict[str, Any] = {}
         if options.motion:
             counts["motion_frames"] = _featurize_motion(
-                reader, version, motion_families, options.motion_settings()
+                reader, version, motion_families, options.motion_settings(), n_joints
             )
+            counts["motion_absent"] = {
+                f.name: f"needs motion/{', motion/'.join(f.requires)}, which this store lacks"
+                for f in absent_families
+            }
         if options.audio:
             counts.update(_featurize_audio(reader, version, audio_cfg, families))
         name = version.commit(counts=counts)
@@ -173,11 +186,13 @@ def _featurize_motion(
     version: VersionWriter,
     families: list[MotionFamily],
     settings: MotionSettings,
+    n_joints: int,
 ) -> int:
-    if not reader.has_array("motion/axis_angle"):
-        raise StoreError("no motion/axis_angle to derive rotations from", reader.path)
-    axis_angle, trans = reader.array("motion/axis_angle"), reader.array("motion/trans")
-    n_joints = axis_angle.shape[1]
+    base = {
+        name: reader.array(f"motion/{name}")
+        for name in BASE_ARRAYS
+        if reader.has_array(f"motion/{name}")
+    }
     attrs = reader.group_attrs("motion")
     sequences = reader.table("sequences")
     starts = np.asarray(sequences.column("frame_start").to_numpy(), dtype=np.int64)
@@ -188,12 +203,12 @@ def _featurize_motion(
         for family in families
         for spec in family.arrays(n_joints, settings)
     }
+    needed = sorted({name for family in families for name in family.requires})
     batches = sequence_batches(starts, stops)
     for first, stop in progress(batches, "featurize motion", unit="batch"):
         f0, f1 = int(starts[first]), int(stops[stop - 1])
         batch = MotionBatch(
-            axis_angle=np.asarray(axis_angle[f0:f1], dtype=np.float64),
-            trans=np.asarray(trans[f0:f1], dtype=np.float64),
+            arrays={name: np.asarray(base[name][f0:f1], dtype=np.float64) for name in needed},
             bounds=np.stack([starts[first:stop] - f0, stops[first:stop] - f0], axis=1),
             attrs=attrs,
         )
@@ -202,7 +217,12 @@ def _featurize_motion(
                 writers[path].append(values)
     for writer in writers.values():
         writer.close()
-    return int(axis_angle.shape[0])
+    return int(stops[-1]) if len(stops) else 0
+
+
+def _skeleton_joints(reader: VersionReader) -> int:
+    skeleton = reader.group_attrs("motion").get("skeleton") or {}
+    return len(skeleton.get("joints", []))
 
 
 def _featurize_audio(

@@ -26,23 +26,34 @@ from dancedata.compute.motion_representations import (
 )
 from dancedata.pipeline.audio_families import ArraySpec
 
+# Arrays a family may read, as ingest stores them (whichever of them the store has).
+BASE_ARRAYS: tuple[str, ...] = (
+    "axis_angle",  # (F, J, 3) radians
+    "trans",  # (F, 3) metres
+    "euler",  # (F, J, 3) radians, BVH: each joint's own order
+    "positions",  # (F, J, 3) metres, world joint positions
+    "keypoints3d",  # (F, 17, 3) metres
+    "keypoints2d",  # video poses, pixels
+)
+
 
 @dataclass(frozen=True)
 class MotionBatch:
-    """Consecutive whole sequences: arrays over the batch's frames plus sequence bounds.
+    """Consecutive whole sequences: base arrays over the batch's frames, sequence bounds.
 
-    ``bounds`` is (S, 2) half-open [start, stop) of each sequence relative to the batch.
-    ``attrs`` are the ``motion`` group attrs (fps, skeleton, ...); ``fps`` in frames/second.
+    ``arrays`` maps base array names (see :data:`BASE_ARRAYS`) present in the store to float64
+    arrays of the batch's frames. ``bounds`` is (S, 2) half-open [start, stop) of each
+    sequence relative to the batch. ``attrs`` are the ``motion`` group attrs (``fps`` in
+    frames/second, ``skeleton``, ...).
     """
 
-    axis_angle: np.ndarray  # (n, J, 3) float64, radians
-    trans: np.ndarray  # (n, 3) float64, metres
+    arrays: dict[str, np.ndarray]
     bounds: np.ndarray
     attrs: dict[str, Any]
 
     @property
-    def n_joints(self) -> int:
-        return int(self.axis_angle.shape[1])
+    def axis_angle(self) -> np.ndarray:
+        return self.arrays["axis_angle"]
 
     def sequences(self) -> list[slice]:
         return [slice(int(a), int(b)) for a, b in self.bounds]
@@ -57,7 +68,11 @@ class MotionSettings:
 
 
 class MotionFamily:
+    """Base class. ``requires`` names the base arrays the family reads; when the store lacks
+    one, featurize skips the family and reports its arrays as absent (never zero-filled)."""
+
     name: str = ""
+    requires: tuple[str, ...] = ()
 
     def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
         raise NotImplementedError
@@ -73,6 +88,7 @@ class RotationsFamily(MotionFamily):
     """rotmat, euler, quat (wxyz, sign-continuous within each sequence) and rot6d."""
 
     name = "rotations"
+    requires = ("axis_angle",)
 
     def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
         return [
