@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 pipeline: $(STAMP)
-	test -f $(DEMO_RAW)/.complete || $(BIN)/dancedata synth aist $(DEMO_RAW) --sequences $(DEMO_SEQUENCES) --seed 0
+	test -d $(DEMO_RAW) || $(BIN)/dancedata synth aist $(DEMO_RAW) --sequences $(DEMO_SEQUENCES) --seed 0
 	$(BIN)/dancedata ingest aist $(DEMO_RAW) --store $(DEMO_STORE)
 	$(BIN)/dancedata featurize $(DEMO_STORE)
 	$(BIN)/dancedata segment $(DEMO_STORE)

@@ -226,3 +226,17 @@ def test_different_seed_gives_different_data(tmp_path):
     assert (tmp_path / "a" / "motions" / name).read_bytes() != (
         tmp_path / "b" / "motions" / name
     ).read_bytes()
+
+
+def test_rerunning_the_whole_chain_on_its_output_writes_nothing(built):
+    store, raw = built["store"], built["raw"]
+    layout = StoreLayout(store)
+    before = layout.committed_versions()
+    assert ingest_aist(store, raw, AistIngestOptions()).created is False
+    # featurize reads only ingested data: the segmented v3 already holds its result.
+    again = featurize(store, FeaturizeOptions())
+    assert (again.created, again.version) == (False, "v3")
+    assert segment(store, SegmentOptions()).created is False
+    assert layout.committed_versions() == before
+    stages = layout.read_manifest("v3")["stages"]
+    assert set(stages) == {"ingest", "featurize", "segment"}

@@ -223,6 +223,7 @@ def ingest_aist(store: str | Path, raw: str | Path, options: AistIngestOptions) 
         parent=parent,
         carry_over=False,
         wait_for_lock=options.wait_for_lock,
+        stage="ingest",
     ) as version:
         for item in inventory.skipped:
             version.skip(item["path"], item["error"])

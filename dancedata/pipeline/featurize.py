@@ -36,7 +36,7 @@ from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
-from dancedata.store.writer import VersionWriter, already_done
+from dancedata.store.writer import VersionWriter, already_done, base_fingerprint
 
 DEFAULT_EULER_ORDER = "XYZ"
 
@@ -121,8 +121,8 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
     if options.audio and abs(audio_cfg.fps - fps) > 1e-9:
         raise InputError(f"audio fps {audio_cfg.fps} differs from the motion fps {fps}")
     config = options.config(audio_cfg)
-    fp = fingerprint("featurize", config, [reader.manifest["fingerprint"]], __version__)
-    existing = already_done(store, fp, reader.manifest, "featurize", config)
+    fp = fingerprint("featurize", config, [base_fingerprint(reader.manifest)], __version__)
+    existing = already_done(store, fp, reader.manifest, "featurize")
     if existing is not None:
         return CommandResult(version=existing, created=False)
 
@@ -149,6 +149,8 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
         inputs=[{"path": f"{parent}", "bytes": 0, "sha256": reader.manifest["fingerprint"]}],
         parent=parent,
         wait_for_lock=options.wait_for_lock,
+        stage="featurize",
+        parent_stages=reader.manifest.get("stages"),
     ) as version:
         for name in motion_arrays + audio_arrays:
             version.remove_array(name)

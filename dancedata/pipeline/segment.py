@@ -14,7 +14,7 @@ from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
-from dancedata.store.writer import VersionWriter, already_done
+from dancedata.store.writer import VersionWriter, already_done, base_fingerprint
 
 
 @dataclass
@@ -65,8 +65,8 @@ def segment(store: str | Path, options: SegmentOptions) -> CommandResult:
     parent = layout.resolve(options.version)
     reader = VersionReader(store, parent)
     config = options.config()
-    fp = fingerprint("segment", config, [reader.manifest["fingerprint"]], __version__)
-    existing = already_done(store, fp, reader.manifest, "segment", config)
+    fp = fingerprint("segment", config, [base_fingerprint(reader.manifest)], __version__)
+    existing = already_done(store, fp, reader.manifest, "segment")
     if existing is not None:
         return CommandResult(version=existing, created=False)
     rows = measure_rows(reader.table("sequences").to_pylist(), options)
@@ -78,6 +78,8 @@ def segment(store: str | Path, options: SegmentOptions) -> CommandResult:
         inputs=[{"path": parent, "bytes": 0, "sha256": reader.manifest["fingerprint"]}],
         parent=parent,
         wait_for_lock=options.wait_for_lock,
+        stage="segment",
+        parent_stages=reader.manifest.get("stages"),
     ) as version:
         version.write_table("measures", build_table("measures", rows))
         counts = {"measures": len(rows), "sequences": len({r["seq_id"] for r in rows})}

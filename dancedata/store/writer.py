@@ -107,8 +107,15 @@ class VersionWriter:
         carry_over: bool = True,
         drop: Iterable[str] = (),
         wait_for_lock: bool = False,
+        stage: str | None = None,
+        parent_stages: dict[str, str] | None = None,
     ) -> None:
         self.layout = StoreLayout(store)
+        # Which fingerprint produced each stage of this version's data ("ingest", "featurize",
+        # "segment"): the parent's stages plus this command's.
+        self.stages = dict(parent_stages or {})
+        if stage is not None:
+            self.stages[stage] = fingerprint
         self.command = command
         self.config = config
         self.fingerprint = fingerprint
@@ -216,6 +223,7 @@ class VersionWriter:
             "command": self.command,
             "config": self.config,
             "fingerprint": self.fingerprint,
+            "stages": self.stages,
             "inputs": self.inputs,
             "skipped": self.skipped,
             "libraries": library_versions(),
@@ -232,26 +240,32 @@ class VersionWriter:
         return name
 
 
+def base_fingerprint(manifest: dict[str, Any]) -> str:
+    """Fingerprint of the ingested data a version derives from (its ``ingest`` stage).
+
+    featurize and segment read only ingested data, so their fingerprints hash this rather than
+    the parent's own fingerprint: re-running the pipeline on its own output changes nothing.
+    """
+    stages = manifest.get("stages") or {}
+    return stages.get("ingest") or manifest["fingerprint"]
+
+
 def already_done(
     store: str | Path,
     fingerprint: str,
     parent_manifest: dict[str, Any] | None = None,
-    command: str | None = None,
-    config: dict[str, Any] | None = None,
+    stage: str | None = None,
 ) -> str | None:
-    """The committed version that already holds a command's result, if any: one with the same
-    fingerprint, or the parent itself when it was made by the same command with the same config
-    (featurize and segment are idempotent: running them on their own output changes nothing)."""
-    found = find_version_with_fingerprint(store, fingerprint)
-    if found is not None:
-        return found
-    if (
-        parent_manifest is not None
-        and parent_manifest.get("command") == command
-        and parent_manifest.get("config") == config
-    ):
-        return parent_manifest.get("version")
-    return None
+    """The committed version that already holds a command's result, if any.
+
+    That is the parent itself when its ``stages`` record this stage with this fingerprint
+    (e.g. featurize run again on a version that was featurized the same way and then
+    segmented), else any version whose manifest fingerprint equals ``fingerprint``.
+    """
+    stages = (parent_manifest or {}).get("stages") or {}
+    if stage is not None and stages.get(stage) == fingerprint:
+        return parent_manifest.get("version")  # type: ignore[union-attr]
+    return find_version_with_fingerprint(store, fingerprint)
 
 
 def find_version_with_fingerprint(store: str | Path, fingerprint: str) -> str | None:
