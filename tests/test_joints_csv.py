@@ -141,3 +141,21 @@ def test_non_utf8_and_missing_file(tmp_path: Path) -> None:
         read_joints_csv(path)
     with pytest.raises(InputError, match="file not found"):
         read_joints_csv(tmp_path / "absent.csv")
+
+
+def test_headerless_auto_index_column_by_width(tmp_path: Path) -> None:
+    values = _data(3)
+    plain = tmp_path / "plain.csv"
+    plain.write_text("\n".join(",".join(c) for c in _cells(values)))
+    out = read_joints_csv(plain, joints=NAMES, index_column="auto")
+    assert out.frames is None and out.n_frames == 3
+    np.testing.assert_array_equal(out.positions, values)
+    framed = tmp_path / "framed.csv"
+    framed.write_text("\n".join(",".join([str(2 * f)] + c) for f, c in enumerate(_cells(values))))
+    out = read_joints_csv(framed, joints=NAMES, index_column="auto")
+    assert out.n_frames == 5 and out.present.tolist() == [True, False, True, False, True]
+    odd = tmp_path / "odd.csv"
+    odd.write_text("1,2,3,4,5\n")
+    with pytest.raises(InputError, match="5 columns; 3 joints need 9 .* or 10") as info:
+        read_joints_csv(odd, joints=NAMES, index_column="auto")
+    assert str(odd) in str(info.value)

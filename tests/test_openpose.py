@@ -9,13 +9,19 @@ import numpy as np
 import pytest
 
 from dancedata.errors import InputError
-from dancedata.io.openpose import BODY_25, COCO_18, read_openpose_folder
+from dancedata.io.openpose import BODY_25, COCO_18, keypoint_file_prefix, read_openpose_folder
 
 RAGA = Path("openpose")
 
 
-def _write(folder: Path, index: int, people: list, prefix: str = "video", width: int = 12,
-           version: float = 1.3) -> Path:
+def _write(
+    folder: Path,
+    index: int,
+    people: list,
+    prefix: str = "video",
+    width: int = 12,
+    version: float = 1.3,
+) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{prefix}_{index:0{width}d}_keypoints.json"
     path.write_text(json.dumps({"version": version, "people": people}))
@@ -160,16 +166,20 @@ MALFORMED = {
     "missing_people": (json.dumps({"version": 1.3}).encode(), "no 'people' list"),
     "people_not_list": (json.dumps({"people": {}}).encode(), "'people' is not a list"),
     "wrong_count": (
-        json.dumps({"people": [{"pose_keypoints_2d": [1.0] * 74}]}).encode(), "74 pose values"
+        json.dumps({"people": [{"pose_keypoints_2d": [1.0] * 74}]}).encode(),
+        "74 pose values",
     ),
     "truncated": (json.dumps(_valid_doc()).encode()[:120], "not valid JSON \\(file truncated"),
     "non_utf8": (b'{"people": [], "version": "\xff\xfe1.3"}', "not UTF-8"),
     "top_level_list": (b"[1, 2, 3]", "not a JSON object"),
     "non_numeric": (
-        json.dumps({"people": [{"pose_keypoints_2d": ["a"] * 75}]}).encode(), "not all numbers"
+        json.dumps({"people": [{"pose_keypoints_2d": ["a"] * 75}]}).encode(),
+        "not all numbers",
     ),
-    "no_keypoints": (json.dumps({"people": [{"person_id": [-1]}]}).encode(),
-                     "no 'pose_keypoints_2d'"),
+    "no_keypoints": (
+        json.dumps({"people": [{"person_id": [-1]}]}).encode(),
+        "no 'pose_keypoints_2d'",
+    ),
     "bad_person_id": (
         json.dumps({"people": [{"person_id": "x", "pose_keypoints_2d": [0] * 75}]}).encode(),
         "person_id",
@@ -208,3 +218,33 @@ def test_folder_problems(tmp_path: Path) -> None:
     (tmp_path / "video_keypoints.json").write_text("{}")
     with pytest.raises(InputError, match="no frame number"):
         read_openpose_folder(tmp_path)
+
+
+def test_body_model_by_majority_names_the_odd_file(tmp_path: Path) -> None:
+    odd = _write(tmp_path, 0, [_person(18, 0)])  # the first file is the odd one out
+    _write(tmp_path, 1, [_person(25, 1)])
+    _write(tmp_path, 2, [_person(25, 2)])
+    with pytest.raises(InputError, match="54 pose values, expected 75") as info:
+        read_openpose_folder(tmp_path)
+    assert str(info.value).startswith(str(odd))
+
+
+def test_bad_files_become_missing_frames_when_handled(tmp_path: Path) -> None:
+    _write(tmp_path, 0, [_person(25, 0)])
+    truncated = tmp_path / "video_000000000001_keypoints.json"
+    truncated.write_text('{"version": 1.3, "people": [')
+    odd = _write(tmp_path, 2, [_person(18, 2)])
+    _write(tmp_path, 3, [_person(25, 3)])
+    bad: list[tuple[Path, str]] = []
+    frames = read_openpose_folder(tmp_path, on_bad_file=lambda p, e: bad.append((p, e)))
+    assert frames.skeleton is BODY_25 and frames.n_frames == 4
+    assert frames.present.tolist() == [True, False, False, True]
+    assert frames.n_people.tolist() == [1, 0, 0, 1] and frames.keypoints.shape == (2, 25, 3)
+    assert [p for p, _ in bad] == [truncated, odd]
+    assert "truncated" in bad[0][1] and "54 pose values" in bad[1][1]
+
+
+def test_keypoint_file_prefix() -> None:
+    assert keypoint_file_prefix("short_video_000000000012_keypoints.json") == "short_video"
+    assert keypoint_file_prefix("000000000012_keypoints.json") == ""
+    assert keypoint_file_prefix("notes.txt") is None

@@ -245,9 +245,7 @@ def test_fill_gaps_matches_per_frame_interpolation(mask, max_gap, seed) -> None:
 
 @pytest.mark.real_data
 def test_raga_3people_three_stable_seated_people(real_data: Path) -> None:
-    frames = read_openpose_folder(
-        real_data / "openpose" / "raga_example_3people" / "output_json"
-    )
+    frames = read_openpose_folder(real_data / "openpose" / "raga_example_3people" / "output_json")
     pose = track_openpose(frames)
     assert pose.method == "bbox" and pose.n_labels == 3 and pose.identity_switches == ()
     # Independent reference: the performers are seated side by side, so ordering each frame's
@@ -258,8 +256,9 @@ def test_raga_3people_three_stable_seated_people(real_data: Path) -> None:
     for k in range(3):
         followed = track_openpose(frames, person=k)
         assert (followed.source_row >= 0).all()
-        rank = [int(np.flatnonzero(order[f] == followed.source_row[f] - 3 * f)[0])
-                for f in range(125)]
+        rank = [
+            int(np.flatnonzero(order[f] == followed.source_row[f] - 3 * f)[0]) for f in range(125)
+        ]
         assert rank == [k] * 125  # tracklet k is the k-th from the left in every frame
     # Default = largest mean box area, computed here from the left-to-right reference.
     y = np.where(kp[..., 2] > 0, kp[..., 1], np.nan)
@@ -270,9 +269,7 @@ def test_raga_3people_three_stable_seated_people(real_data: Path) -> None:
 
 @pytest.mark.real_data
 def test_raga_1person_masks_follow_confidence(real_data: Path) -> None:
-    frames = read_openpose_folder(
-        real_data / "openpose" / "raga_example_1person" / "output_json"
-    )
+    frames = read_openpose_folder(real_data / "openpose" / "raga_example_1person" / "output_json")
     pose = track_openpose(frames)
     raw = frames.keypoints
     np.testing.assert_array_equal(pose.mask, raw[..., 2] > 0)

@@ -121,8 +121,11 @@ def test_resample_by_time_with_irregular_timestamps() -> None:
 
 def test_frame_count_check() -> None:
     assert check_frame_count(125, 125, 25.0).frames == 0
-    with pytest.raises(InputError, match=r"120 pose frames \(poses/\) but 125 video frames: "
-                                         r"drift -5 frames \(-0.200 s at 25 fps\)") as info:
+    with pytest.raises(
+        InputError,
+        match=r"120 pose frames \(poses/\) but 125 video frames: "
+        r"drift -5 frames \(-0.200 s at 25 fps\)",
+    ) as info:
         check_frame_count(120, 125, 25.0, pose_path="poses/", video_path="clip.mp4")
     assert str(info.value).startswith("clip.mp4: ")
     drift = check_frame_count(120, 125, 25.0, allow_drift=True)
@@ -135,22 +138,36 @@ def test_raga_3people_half_the_video_has_poses(real_data: Path) -> None:
     root = real_data / "openpose" / "raga_example_3people"
     poses = read_openpose_folder(root / "output_json")
     clock = read_video_clock(root / "short_video.mp4")
-    with pytest.raises(InputError, match="125 pose frames .* but 250 video frames: drift -125 "
-                                         r"frames \(-5.000 s at 25 fps\)") as info:
-        check_frame_count(poses.n_frames, clock.n_frames, clock.fps,
-                          pose_path=str(poses.folder), video_path=str(clock.path))
+    with pytest.raises(
+        InputError,
+        match="125 pose frames .* but 250 video frames: drift -125 "
+        r"frames \(-5.000 s at 25 fps\)",
+    ) as info:
+        check_frame_count(
+            poses.n_frames,
+            clock.n_frames,
+            clock.fps,
+            pose_path=str(poses.folder),
+            video_path=str(clock.path),
+        )
     assert str(info.value).startswith(str(clock.path))
     drift = check_frame_count(poses.n_frames, clock.n_frames, clock.fps, allow_drift=True)
-    assert drift.to_dict() == {"pose_frames": 125, "video_frames": 250, "fps": 25.0,
-                               "drift_frames": -125, "drift_s": -5.0}
+    assert drift.to_dict() == {
+        "pose_frames": 125,
+        "video_frames": 250,
+        "fps": 25.0,
+        "drift_frames": -125,
+        "drift_s": -5.0,
+    }
 
 
 @pytest.mark.real_data
 def test_raga_1person_poses_match_the_video(real_data: Path) -> None:
     root = real_data / "openpose" / "raga_example_1person"
     clock = read_video_clock(root / "short_video.mp4")
-    drift = check_frame_count(read_openpose_folder(root / "output_json").n_frames,
-                              clock.n_frames, clock.fps)
+    drift = check_frame_count(
+        read_openpose_folder(root / "output_json").n_frames, clock.n_frames, clock.fps
+    )
     assert drift.frames == 0 and drift.seconds == 0.0
 
 
@@ -184,16 +201,21 @@ def _detect_blobs(path: Path) -> np.ndarray:
             break
         weight = np.clip(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY).astype(float) - 20, 0, None)
         total = weight.sum()
-        out.append([(weight.sum(0) * xs).sum() / total,
-                    (weight.sum(1) * np.arange(HEIGHT)).sum() / total])
+        out.append(
+            [(weight.sum(0) * xs).sum() / total, (weight.sum(1) * np.arange(HEIGHT)).sum() / total]
+        )
     cap.release()
     return np.array(out)[:, None, :]
 
 
 @pytest.mark.parametrize(
     "fps, codec, suffix, target",
-    [(25.0, "mp4v", ".mp4", 60.0), (30000 / 1001, "MJPG", ".avi", 60.0),
-     (30.0, "mp4v", ".mp4", 20.0), (25.0, "MJPG", ".avi", 24.0)],
+    [
+        (25.0, "mp4v", ".mp4", 60.0),
+        (30000 / 1001, "MJPG", ".avi", 60.0),
+        (30.0, "mp4v", ".mp4", 20.0),
+        (25.0, "MJPG", ".avi", 24.0),
+    ],
 )
 def test_alignment_error_on_generated_video(tmp_path, fps, codec, suffix, target) -> None:
     path = tmp_path / f"blob{suffix}"

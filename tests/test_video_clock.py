@@ -54,8 +54,9 @@ def test_raga_video_clock(real_data: Path, name: str, n_frames: int, size) -> No
 
 @pytest.mark.real_data
 def test_raga_3people_decoded_count_agrees_with_header(real_data: Path) -> None:
-    clock = read_video_clock(real_data / RAGA / "raga_example_3people" / "short_video.mp4",
-                             verify="always")
+    clock = read_video_clock(
+        real_data / RAGA / "raga_example_3people" / "short_video.mp4", verify="always"
+    )
     assert clock.decoded_frame_count == 250 == clock.property_frame_count
     assert clock.frame_count_source == "decoded"
     assert clock.duration_s == pytest.approx(10.0)
@@ -74,8 +75,13 @@ def test_raga_audio_tracks(real_data: Path) -> None:
 
 @pytest.mark.parametrize(
     "codec, suffix, fps, n_frames",
-    [("mp4v", ".mp4", 25.0, 40), ("MJPG", ".avi", 30.0, 37), ("mp4v", ".mov", 24.0, 29),
-     ("MJPG", ".avi", 29.97, 31), ("mp4v", ".mp4", 50.0, 61)],
+    [
+        ("mp4v", ".mp4", 25.0, 40),
+        ("MJPG", ".avi", 30.0, 37),
+        ("mp4v", ".mov", 24.0, 29),
+        ("MJPG", ".avi", 29.97, 31),
+        ("mp4v", ".mp4", 50.0, 61),
+    ],
 )
 @pytest.mark.parametrize("verify", ["auto", "always", "never"])
 def test_generated_video_read_back_exactly(

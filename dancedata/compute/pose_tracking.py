@@ -95,6 +95,7 @@ class TrackedPose:
             "frames": int(self.source_row.shape[0]),
             "joints_detected_fraction": float(detected.mean()) if detected.size else 0.0,
             "joints_filled": int(self.filled.sum()),
+            "frames_filled": int(self.filled.any(axis=1).sum()),
         }
 
 
@@ -114,8 +115,12 @@ def bounding_boxes(keypoints: np.ndarray, min_conf: float = 0.0) -> np.ndarray:
     has = ok.any(axis=1)
     if has.any():
         boxes[has] = np.stack(
-            [np.nanmin(x[has], 1), np.nanmin(y[has], 1), np.nanmax(x[has], 1),
-             np.nanmax(y[has], 1)],
+            [
+                np.nanmin(x[has], 1),
+                np.nanmin(y[has], 1),
+                np.nanmax(x[has], 1),
+                np.nanmax(y[has], 1),
+            ],
             axis=1,
         )
     return boxes
@@ -223,9 +228,7 @@ def track_people(
             pairs = list(zip(active, dt, strict=True))
             pred_xy = np.stack([last_xy[t] + vel_xy[t] * d for t, d in pairs])
             pred_ok = np.stack([last_ok[t] for t in active])
-            pred_box = np.stack([
-                last_box[t] + np.tile(vel_box[t] * d, 2) for t, d in pairs
-            ])
+            pred_box = np.stack([last_box[t] + np.tile(vel_box[t] * d, 2) for t, d in pairs])
             cost = link_cost(
                 pred_xy, pred_ok, pred_box, kp[rows, :, :2], seen[rows], boxes[rows], max_dist
             )
@@ -305,8 +308,12 @@ def _rows_by_frame(frame_of_row: np.ndarray, keep: np.ndarray, n_frames: int) ->
 
 
 def _follow_ids(
-    ids: np.ndarray, tracklets: np.ndarray, conf_mean: np.ndarray, frame_of_row: np.ndarray,
-    chosen: int, n_frames: int,
+    ids: np.ndarray,
+    tracklets: np.ndarray,
+    conf_mean: np.ndarray,
+    frame_of_row: np.ndarray,
+    chosen: int,
+    n_frames: int,
 ) -> tuple[np.ndarray, list[int]]:
     """Rows of person id ``chosen`` per frame, and the frames where it switched body.
 
@@ -338,8 +345,12 @@ def _follow_ids(
 
 
 def _follow_tracklets(
-    tracklets: np.ndarray, boxes: np.ndarray, frame_of_row: np.ndarray, chosen: int,
-    n_frames: int, relink_gap: int,
+    tracklets: np.ndarray,
+    boxes: np.ndarray,
+    frame_of_row: np.ndarray,
+    chosen: int,
+    n_frames: int,
+    relink_gap: int,
 ) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """Follow ``chosen`` forward and backward, hopping to the next tracklet when it ends.
 

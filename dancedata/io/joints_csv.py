@@ -11,7 +11,8 @@ Column mapping (documented contract for ``dancedata ingest video --poses``):
   are an error, so that a typo is never silently dropped, unless listed in ``ignore``.
 * **Without a header**: pass ``joints`` (names, in column order). Each row is then
   ``x0, y0, z0, x1, y1, z1, ...``, optionally preceded by one frame or time column
-  (``index_column="frame"`` / ``"time"``).
+  (``index_column="frame"`` / ``"time"``; ``"auto"`` takes a first column as the frame number
+  when the first row has ``3 J + 1`` cells, none when it has ``3 J``).
 
 Frames: with a frame column, rows are placed at their frame number minus ``frame_base`` (so
 gaps become missing frames, NaN, ``present`` False, exactly like OpenPose file numbering); without
@@ -145,10 +146,22 @@ def _header_columns(
     return joints, coord, frame_col, time_col
 
 
+def _auto_index_column(width: int, n_joints: int, path: Path) -> Literal["frame"] | None:
+    if width == 3 * n_joints:
+        return None
+    if width == 3 * n_joints + 1:
+        return "frame"
+    raise InputError(
+        f"the first row has {width} columns; {n_joints} joints need {3 * n_joints} "
+        f"(x, y, z each) or {3 * n_joints + 1} (after a frame column)",
+        path,
+    )
+
+
 def read_joints_csv(
     path: str | Path,
     joints: list[str] | tuple[str, ...] | None = None,
-    index_column: Literal["frame", "time"] | None = None,
+    index_column: Literal["frame", "time", "auto"] | None = None,
     frame_base: int = 0,
     delimiter: str | None = None,
     ignore: tuple[str, ...] = (),
@@ -159,7 +172,8 @@ def read_joints_csv(
         path: the CSV file.
         joints: joint names for a headerless file, in column order (ignored with a header,
             except that a header naming other joints is an error when both are given).
-        index_column: headerless only: the first column is a frame number or a time (seconds).
+        index_column: headerless only: the first column is a frame number or a time (seconds);
+            "auto": a frame number exactly when the first row has 3 × len(joints) + 1 cells.
         frame_base: the frame number of the video's first frame in the frame column (0 or 1).
         delimiter: force a delimiter instead of detecting it.
         ignore: header names of extra columns to skip.
@@ -178,24 +192,29 @@ def read_joints_csv(
     if has_header:
         names, coord, frame_col, time_col = _header_columns(header, path, ignore)
         if joints is not None and list(joints) != names:
-            raise InputError(f"header joints {names} differ from the joints given {list(joints)}",
-                             path)
+            raise InputError(
+                f"header joints {names} differ from the joints given {list(joints)}", path
+            )
         body = rows[first_line + 1 :]
         body_start = first_line + 2
         width = len(header)
     else:
         if joints is None:
-            raise InputError("no header row: pass the joint names (joints=...) for its columns",
-                             path)
+            raise InputError(
+                "no header row: pass the joint names (joints=...) for its columns", path
+            )
         names = list(joints)
+        if index_column == "auto":
+            index_column = _auto_index_column(len(header), len(names), path)
         lead = 1 if index_column is not None else 0
         if index_column == "frame":
             frame_col = 0
         elif index_column == "time":
             time_col = 0
         elif index_column is not None:
-            raise InputError(f"index_column must be 'frame', 'time' or None, not {index_column!r}",
-                             path)
+            raise InputError(
+                f"index_column must be 'frame', 'time' or None, not {index_column!r}", path
+            )
         coord = {(j, a): lead + 3 * k + i for k, j in enumerate(names) for i, a in enumerate(_AXES)}
         body = rows[first_line:]
         body_start = first_line + 1
@@ -210,10 +229,13 @@ def read_joints_csv(
             continue
         if len(row) != width:
             raise InputError(f"line {line} has {len(row)} columns, expected {width}", path)
-        values.append([
-            _to_float(row[coord[(j, a)]], path, line, colnames[coord[(j, a)]])
-            for j in names for a in _AXES
-        ])
+        values.append(
+            [
+                _to_float(row[coord[(j, a)]], path, line, colnames[coord[(j, a)]])
+                for j in names
+                for a in _AXES
+            ]
+        )
         if frame_col is not None:
             frame_numbers.append(_to_float(row[frame_col], path, line, "frame"))
         if time_col is not None:
@@ -232,8 +254,9 @@ def read_joints_csv(
         raise InputError("frame column holds values that are not whole numbers", path)
     index = numbers.astype(np.int64) - frame_base
     if (index < 0).any():
-        raise InputError(f"frame number {int(numbers.min())} is below frame_base {frame_base}",
-                         path)
+        raise InputError(
+            f"frame number {int(numbers.min())} is below frame_base {frame_base}", path
+        )
     if np.unique(index).size != index.size:
         dup = int(np.flatnonzero(np.bincount(index) > 1)[0]) + frame_base
         raise InputError(f"frame {dup} appears more than once", path)

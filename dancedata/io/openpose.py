@@ -14,7 +14,8 @@ the people of frame ``f`` are rows ``frame_offsets[f]:frame_offsets[f + 1]`` of 
 This is the layout a Zarr v3 store can hold without ragged arrays.
 
 The body model is detected from the keypoint count: 25 joints = BODY_25, 18 = COCO (OpenPose's
-18-joint COCO model with a synthetic neck). Raw values are kept as written (zeros for undetected
+18-joint COCO model with a synthetic neck), by majority over the files, so a stray file with another
+count is the one reported as wrong. Raw values are kept as written (zeros for undetected
 joints); turning them into NaN + mask is the tracker's job (:mod:`dancedata.compute.pose_tracking`).
 """
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -62,20 +64,57 @@ class Skeleton:
 BODY_25 = Skeleton(
     name="openpose_body25",
     joints=(
-        "Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist",
-        "MidHip", "RHip", "RKnee", "RAnkle", "LHip", "LKnee", "LAnkle", "REye", "LEye", "REar",
-        "LEar", "LBigToe", "LSmallToe", "LHeel", "RBigToe", "RSmallToe", "RHeel",
+        "Nose",
+        "Neck",
+        "RShoulder",
+        "RElbow",
+        "RWrist",
+        "LShoulder",
+        "LElbow",
+        "LWrist",
+        "MidHip",
+        "RHip",
+        "RKnee",
+        "RAnkle",
+        "LHip",
+        "LKnee",
+        "LAnkle",
+        "REye",
+        "LEye",
+        "REar",
+        "LEar",
+        "LBigToe",
+        "LSmallToe",
+        "LHeel",
+        "RBigToe",
+        "RSmallToe",
+        "RHeel",
     ),
-    parents=(1, 8, 1, 2, 3, 1, 5, 6, -1, 8, 9, 10, 8, 12, 13, 0, 0, 15, 16, 14, 19, 14, 11, 22,
-             11),
+    parents=(1, 8, 1, 2, 3, 1, 5, 6, -1, 8, 9, 10, 8, 12, 13, 0, 0, 15, 16, 14, 19, 14, 11, 22, 11),
 )
 
 # OpenPose COCO-18 (COCO-17 plus a Neck at index 1), rooted at Neck.
 COCO_18 = Skeleton(
     name="openpose_coco18",
     joints=(
-        "Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist",
-        "RHip", "RKnee", "RAnkle", "LHip", "LKnee", "LAnkle", "REye", "LEye", "REar", "LEar",
+        "Nose",
+        "Neck",
+        "RShoulder",
+        "RElbow",
+        "RWrist",
+        "LShoulder",
+        "LElbow",
+        "LWrist",
+        "RHip",
+        "RKnee",
+        "RAnkle",
+        "LHip",
+        "LKnee",
+        "LAnkle",
+        "REye",
+        "LEye",
+        "REar",
+        "LEar",
     ),
     parents=(1, -1, 1, 2, 3, 1, 5, 6, 1, 8, 9, 1, 11, 12, 0, 0, 14, 15),
 )
@@ -128,6 +167,15 @@ class OpenPoseFrames:
         """(n, J, 3) keypoints and (n,) person ids of one frame."""
         lo, hi = int(self.frame_offsets[frame]), int(self.frame_offsets[frame + 1])
         return self.keypoints[lo:hi], self.person_ids[lo:hi]
+
+
+def keypoint_file_prefix(name: str) -> str | None:
+    """The part of an OpenPose file name before its frame number (``"video"`` for
+    ``video_000000000012_keypoints.json``), or None for other names."""
+    if not name.endswith("_keypoints.json"):
+        return None
+    match = _FILE_RE.match(name)
+    return None if match is None else match.group("prefix")
 
 
 def list_keypoint_files(folder: str | Path, prefix: str | None = None) -> dict[int, Path]:
@@ -239,21 +287,48 @@ def _detect_skeleton(flat: list, path: Path) -> Skeleton:
     )
 
 
+def _majority_skeleton(parsed: dict[int, tuple[Path, list[list]]]) -> Skeleton | None:
+    """The body model most files use (by their first person's value count); ties go to the
+    earliest file. None when no file has a person with a BODY_25 or COCO value count."""
+    votes: dict[int, int] = {}
+    first_seen: dict[int, int] = {}
+    for index, (_, flats) in parsed.items():
+        if not flats or not isinstance(flats[0], list):
+            continue
+        n = len(flats[0])
+        if n % 3 or n // 3 not in SKELETONS_BY_COUNT:
+            continue
+        votes[n // 3] = votes.get(n // 3, 0) + 1
+        first_seen.setdefault(n // 3, index)
+    if not votes:
+        return None
+    best = max(votes, key=lambda k: (votes[k], -first_seen[k]))
+    return SKELETONS_BY_COUNT[best]
+
+
+BadFileHandler = Callable[[Path, str], None]
+
+
 def read_openpose_folder(
-    folder: str | Path, prefix: str | None = None, model: str | None = None
+    folder: str | Path,
+    prefix: str | None = None,
+    model: str | None = None,
+    on_bad_file: BadFileHandler | None = None,
 ) -> OpenPoseFrames:
     """Read every ``*_keypoints.json`` of ``folder`` (see the module docstring for the layout).
 
     Args:
         folder: OpenPose ``--write_json`` output folder.
         prefix: keep only files whose name before the frame number equals this.
-        model: "BODY_25" or "COCO" to require a body model; default: detect it from the keypoint
-            count of the first person found (needed when no frame has anyone in it).
+        model: "BODY_25" or "COCO" to require a body model; default: the model most files use,
+            told from the keypoint count of each file's first person (ties: the earliest file).
+        on_bad_file: called with (file, problem) for each unreadable or malformed file, which
+            then counts as a missing frame (``present`` False); default: raise instead.
 
     Raises:
         InputError: naming the file, for a missing folder, no files, a non-UTF-8 or truncated or
             otherwise invalid JSON file, a missing ``people`` list, or a keypoint count that is not
-            BODY_25/COCO or differs from the other files.
+            BODY_25/COCO or differs from the model (unless ``on_bad_file`` takes file errors).
     """
     root = Path(folder)
     files = list_keypoint_files(root, prefix)
@@ -262,36 +337,59 @@ def read_openpose_folder(
         if model.upper() not in SKELETONS_BY_NAME:
             raise InputError(f"unknown OpenPose model {model!r}; use BODY_25 or COCO", root)
         skeleton = SKELETONS_BY_NAME[model.upper()]
+
+    def bad(exc: InputError) -> None:
+        if on_bad_file is None:
+            raise exc
+        on_bad_file(Path(exc.path) if exc.path else root, exc.problem)
+
+    parsed: dict[int, tuple[Path, list[list]]] = {}
+    ids_by_frame: dict[int, list[int]] = {}
+    version: str | None = None
+    first = True
+    for index, path in files.items():
+        try:
+            try:
+                data = path.read_bytes()
+            except OSError as exc:
+                raise InputError(f"cannot read: {exc.strerror}", path) from None
+            file_version, ids, flats = parse_keypoints_json(data, path)
+        except InputError as exc:
+            bad(exc)
+            continue
+        if first:
+            version, first = file_version, False
+        parsed[index] = (path, flats)
+        ids_by_frame[index] = ids
+    if skeleton is None:
+        skeleton = _majority_skeleton(parsed)
+    if skeleton is None:
+        for path, flats in parsed.values():  # only unknown counts, or nobody at all
+            if flats:
+                _detect_skeleton(flats[0], path)  # raises, naming the first such file
+        raise InputError(
+            "no person in any frame, so the body model cannot be told; pass model='BODY_25' or "
+            "'COCO'",
+            root,
+        )
+
     n_frames = max(files) + 1
     present = np.zeros(n_frames, dtype=bool)
     counts = np.zeros(n_frames, dtype=np.int64)
     names = [""] * n_frames
     rows: list[np.ndarray] = []
     ids_all: list[int] = []
-    version: str | None = None
-    first = True
-    for index, path in files.items():
+    for index, (path, flats) in parsed.items():
         try:
-            data = path.read_bytes()
-        except OSError as exc:
-            raise InputError(f"cannot read: {exc.strerror}", path) from None
-        file_version, ids, flats = parse_keypoints_json(data, path)
-        if first:
-            version, first = file_version, False
-        for k, flat in enumerate(flats):
-            if skeleton is None:
-                skeleton = _detect_skeleton(flat, path)
-            rows.append(_to_joints(flat, skeleton.n_joints, path, k))
-        ids_all.extend(ids)
+            joints = [_to_joints(flat, skeleton.n_joints, path, k) for k, flat in enumerate(flats)]
+        except InputError as exc:
+            bad(exc)
+            continue
+        rows.extend(joints)
+        ids_all.extend(ids_by_frame[index])
         present[index] = True
         counts[index] = len(flats)
         names[index] = path.name
-    if skeleton is None:
-        raise InputError(
-            "no person in any frame, so the body model cannot be told; pass model='BODY_25' or "
-            "'COCO'",
-            root,
-        )
     keypoints = (
         np.stack(rows).astype(np.float32)
         if rows

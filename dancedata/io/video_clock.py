@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import shutil
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -47,6 +47,8 @@ class VideoClock:
         fps_source: "property" or "timestamps".
         property_frame_count: the header's ``CAP_PROP_FRAME_COUNT`` as read (may be 0 or NaN).
         decoded_frame_count: frames actually decoded, or None when not counted.
+        decoded_times: (decoded_frame_count,) presentation time of each decoded frame in
+            seconds (``CAP_PROP_POS_MSEC``), or None when not counted.
     """
 
     path: Path
@@ -59,10 +61,31 @@ class VideoClock:
     fps_source: str
     property_frame_count: float
     decoded_frame_count: int | None
+    decoded_times: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def frame_times(self) -> np.ndarray:
         """(n_frames,) nominal time of each frame in seconds: ``i / fps``."""
         return np.arange(self.n_frames, dtype=np.float64) / self.fps
+
+    def decoded_frame_times(self) -> np.ndarray:
+        """(n_frames,) decoded presentation times in seconds, for variable-frame-rate video.
+
+        Raises:
+            InputError: when the frames were not counted (read with ``verify="always"``) or
+                the timestamps are not strictly increasing.
+        """
+        if self.decoded_times is None:
+            raise InputError(
+                "frame times were not decoded (read the clock with verify='always')", self.path
+            )
+        times = self.decoded_times
+        if times.size > 1 and not (np.diff(times) > 0).all():
+            raise InputError(
+                "decoded frame timestamps are not strictly increasing; use the "
+                "nominal frame times (i / fps)",
+                self.path,
+            )
+        return times
 
     def to_dict(self) -> dict:
         """JSON-ready record for a manifest."""
@@ -183,6 +206,7 @@ def read_video_clock(
         fps_source=fps_source,
         property_frame_count=prop_count,
         decoded_frame_count=decoded,
+        decoded_times=stamps if decoded is not None else None,
     )
 
 

@@ -1,0 +1,447 @@
+"""``dancedata ingest video``: video-derived poses, aligned to each video's clock, into a new
+store version.
+
+Steps: inventory (:mod:`~dancedata.ingest.video_inputs`: which poses, CSV and music go with
+each video) → checksums and fingerprint (same inputs and settings: nothing is written) → per
+video, clock → poses → frame check → track → fill gaps → resample
+(:mod:`~dancedata.ingest.video_poses`) and its music (:mod:`~dancedata.ingest.video_music`) →
+one new version holding only these sequences (its parent is recorded, nothing is carried over).
+
+Every input is read and checked before the version is opened, so a bad input leaves the store
+exactly as it was. Stored arrays (docs/STORE.md, "Video-derived poses"):
+
+* ``motion/keypoints2d`` (F, J, 3) float32: x, y in pixels (origin top-left, y down) and the
+  detector's confidence; x, y NaN and confidence 0 where missing. J = 25 (BODY_25) or 18 (COCO).
+* ``motion/keypoints2d_mask`` (F, J) uint8: 0 missing, 1 detected, 2 gap-filled.
+* ``motion/positions`` (F, K, 3) float32 metres from ``--joints-csv``, NaN where missing, and
+  ``motion/positions_mask`` (F, K) uint8 with the same codes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from dancedata._version import __version__
+from dancedata.errors import InputError
+from dancedata.ingest.result import CommandResult
+from dancedata.ingest.video_inputs import VideoInputs, check_unique_stems, resolve_inputs
+from dancedata.ingest.video_music import MusicTrack, bpm_method, music_from_file, music_from_video
+from dancedata.ingest.video_poses import MASK_CODES, PoseSettings, VideoPoses, process_video
+from dancedata.progress import progress
+from dancedata.store.arrays import FrameArrayWriter
+from dancedata.store.checksums import describe_input, fingerprint
+from dancedata.store.contract import build_table
+from dancedata.store.layout import StoreLayout
+from dancedata.store.writer import VersionWriter, find_version_with_fingerprint
+
+COMMAND = "ingest video"
+
+
+@dataclass
+class VideoIngestOptions:
+    """Every setting of a video ingest (all but ``wait_for_lock`` are fingerprinted).
+
+    Attributes:
+        poses: ``--poses`` folder (see :mod:`dancedata.ingest.video_inputs` for the mapping).
+        joints_csv: ``--joints-csv`` file or folder of 3-d joints.
+        music: ``--music`` file or folder; None: each video's audio track.
+        no_music: store no music at all (ignore audio tracks).
+        bpm: tempo of the music in beats per minute; None: estimate it per track.
+        genre: genre label of every sequence.
+        up_axis: the up axis recorded in the motion attrs ("-y": image and camera frames).
+        settings: the per-video pipeline settings.
+        on_error: "fail" or "skip" (skip a bad video, or a malformed pose file as a missing
+            frame, and record it in the manifest).
+    """
+
+    poses: Path | None = None
+    joints_csv: Path | None = None
+    music: Path | None = None
+    no_music: bool = False
+    bpm: float | None = None
+    genre: str | None = None
+    up_axis: str = "-y"
+    settings: PoseSettings = field(default_factory=PoseSettings)
+    on_error: str = "fail"
+    wait_for_lock: bool = False
+
+    def music_source(self) -> str:
+        if self.no_music:
+            return "none"
+        return "file" if self.music is not None else "video_audio"
+
+    def config(self) -> dict[str, Any]:
+        return {
+            "source": "video",
+            **self.settings.config(),
+            "inputs": {"poses": self.poses is not None, "joints_csv": self.joints_csv is not None},
+            "music": self.music_source(),
+            "audio_offset": 0,
+            "bpm": self.bpm,
+            "bpm_estimate": bpm_method() if self.bpm is None and not self.no_music else None,
+            "genre": self.genre,
+            "up_axis": self.up_axis,
+            "on_error": self.on_error,
+        }
+
+    def check(self) -> None:
+        if self.poses is None and self.joints_csv is None:
+            raise InputError("give the poses: --poses DIR (OpenPose JSON) and/or --joints-csv")
+        if self.no_music and self.music is not None:
+            raise InputError("--music and --no-music exclude each other")
+        if self.bpm is not None and not self.bpm > 0:
+            raise InputError(f"--bpm must be positive, not {self.bpm}")
+        if self.settings.fps is not None and not self.settings.fps > 0:
+            raise InputError(f"--fps must be positive, not {self.settings.fps}")
+        if self.settings.max_gap < 0:
+            raise InputError(f"--max-gap must be 0 or more, not {self.settings.max_gap}")
+
+
+# ----------------------------------------------------------------------------- inventory
+
+
+@dataclass
+class _Run:
+    """What one ingest gathers before writing."""
+
+    options: VideoIngestOptions
+    skipped: list[dict[str, str]] = field(default_factory=list)
+    described: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def fail_or_skip(self, exc: InputError, path: Path | str) -> None:
+        if self.options.on_error != "skip":
+            raise exc
+        self.skipped.append({"path": str(exc.path or path), "error": exc.problem})
+
+    def sha(self, path: Path) -> str:
+        key = str(path)
+        if key not in self.described:
+            self.described[key] = describe_input(path)
+        return self.described[key]["sha256"]
+
+    def pose_digest(self, inputs: VideoInputs) -> str:
+        """One manifest input for a video's pose files: the folder (and file prefix), their
+        total bytes, file count, and the sha256 over ``<file name>:<sha256>`` lines."""
+        key = str(inputs.poses) + (
+            "" if inputs.poses_prefix is None else f"/{inputs.poses_prefix}_*_keypoints.json"
+        )
+        if key not in self.described:
+            digest, total, files = hashlib.sha256(), 0, inputs.pose_files()
+            for path in files:
+                entry = describe_input(path)
+                digest.update(f"{path.name}:{entry['sha256']}\n".encode())
+                total += entry["bytes"]
+            self.described[key] = {
+                "path": key,
+                "bytes": total,
+                "sha256": digest.hexdigest(),
+                "files": len(files),
+            }
+        return self.described[key]["sha256"]
+
+
+def _inventory(run: _Run, videos: list[Path]) -> list[VideoInputs]:
+    opts = run.options
+    found: list[VideoInputs] = []
+    for video in videos:
+        try:
+            found.append(
+                resolve_inputs(video, opts.poses, opts.joints_csv, opts.music, len(videos) == 1)
+            )
+        except InputError as exc:
+            run.fail_or_skip(exc, video)
+    if not found:
+        raise InputError("every video was skipped; nothing to ingest")
+    return found
+
+
+def _sequence_key(run: _Run, inputs: VideoInputs) -> str:
+    """Checksum line binding a sequence id to its inputs (the fingerprint's input list)."""
+    parts = [
+        inputs.seq_id,
+        f"video={run.sha(inputs.video)}",
+        f"poses={run.pose_digest(inputs) if inputs.poses else None}",
+        f"csv={run.sha(inputs.joints_csv) if inputs.joints_csv else None}",
+        f"music={run.sha(inputs.music) if inputs.music else None}",
+    ]
+    return "|".join(parts)
+
+
+# ----------------------------------------------------------------------------- processing
+
+
+@dataclass
+class _Sequence:
+    poses: VideoPoses
+    music: MusicTrack | None
+
+
+def _music(run: _Run, inputs: VideoInputs, cache: dict[str, MusicTrack]) -> MusicTrack | None:
+    opts = run.options
+    if opts.no_music:
+        return None
+    if inputs.music is not None:
+        key = str(inputs.music)
+        if key not in cache:
+            cache[key] = music_from_file(inputs.music, run.sha(inputs.music), opts.bpm)
+        return cache[key]
+    return music_from_video(inputs.video, run.sha(inputs.video), opts.bpm)
+
+
+def _check_consistent(first: _Sequence, seq: _Sequence) -> None:
+    """Every sequence of one store shares the frame rate and skeletons."""
+    a, b = first.poses, seq.poses
+    video = b.inputs.video
+    if abs(a.fps - b.fps) > 1e-9:
+        raise InputError(
+            f"frame rate {b.fps:g} differs from {a.fps:g} of {a.inputs.video.name}; pass --fps "
+            "to resample every video to one rate",
+            video,
+        )
+    if (a.skeleton2d and a.skeleton2d.name) != (b.skeleton2d and b.skeleton2d.name):
+        raise InputError(
+            f"body model {b.skeleton2d.name if b.skeleton2d else None} differs from "
+            f"{a.skeleton2d.name if a.skeleton2d else None} of {a.inputs.video.name}",
+            b.inputs.poses or video,
+        )
+    if a.skeleton3d != b.skeleton3d:
+        raise InputError(
+            f"the joints CSV's joints differ from those of {a.inputs.video.name}",
+            b.inputs.joints_csv or video,
+        )
+
+
+def _process(run: _Run, found: list[VideoInputs]) -> list[_Sequence]:
+    opts = run.options
+    skip = opts.on_error == "skip"
+    cache: dict[str, MusicTrack] = {}
+    done: list[_Sequence] = []
+    for inputs in progress(found, "ingest videos", unit="video"):
+        try:
+            poses = process_video(inputs, opts.settings, skip_bad_files=skip)
+            seq = _Sequence(poses, _music(run, inputs, cache))
+        except InputError as exc:
+            run.fail_or_skip(exc, inputs.video)
+            continue
+        if done:
+            _check_consistent(done[0], seq)  # a setting problem: never skipped
+        run.skipped += [{"path": p, "error": e} for p, e in poses.bad_files]
+        done.append(seq)
+    if not done:
+        raise InputError("every video was skipped; nothing to ingest")
+    return done
+
+
+# ----------------------------------------------------------------------------- tables
+
+
+def _music_rows(seqs: list[_Sequence], genre: str | None, fps: float) -> dict[str, dict]:
+    """Music table rows keyed by file path (one per distinct file); ids made unique."""
+    rows: dict[str, dict[str, Any]] = {}
+    ids: set[str] = set()
+    start = 0
+    for seq in seqs:
+        track = seq.music
+        if track is None or str(track.path) in rows:
+            continue
+        row = track.row(genre, start, fps)
+        if row["music_id"] in ids:
+            row["music_id"] = f"{track.music_id}-{track.sha256[:8]}"
+        ids.add(row["music_id"])
+        rows[str(track.path)] = row
+        start = row["frame_stop"]
+    return rows
+
+
+def _sequence_row(
+    seq: _Sequence, music: dict[str, Any] | None, frame: int, run: _Run
+) -> dict[str, Any]:
+    poses, opts = seq.poses, run.options
+    n = poses.n_frames
+    tracking = poses.report.get("tracking", {})
+    music_frames = None if music is None else music["frame_stop"] - music["frame_start"]
+    bpm = seq.music.bpm if seq.music is not None else opts.bpm
+    return {
+        "seq_id": poses.inputs.seq_id,
+        "source": "video",
+        "genre": opts.genre,
+        "situation": None,
+        "dancer": None,
+        "music_id": None if music is None else music["music_id"],
+        "choreo": None,
+        "bpm": bpm,
+        "fps": poses.fps,
+        "n_frames": n,
+        "frame_start": frame,
+        "frame_stop": frame + n,
+        "audio_offset": 0,
+        "audio_frames": 0 if music_frames is None else min(n, music_frames),
+        "audio_truncated_frames": 0 if music_frames is None else max(0, music_frames - n),
+        "music_missing": music is None,
+        "bpm_estimated": None if bpm is None else bool(seq.music and seq.music.bpm_estimated),
+        "video_fps": poses.clock.fps,
+        "video_frames": poses.clock.n_frames,
+        "video_frames_used": poses.report["video_frames_used"],
+        "drift_frames": poses.report["drift_frames"],
+        "width": poses.clock.width,
+        "height": poses.clock.height,
+        "tracking_method": tracking.get("method"),
+        "tracked_person": tracking.get("chosen"),
+        "identity_switches": tracking.get("identity_switches"),
+        "joints_filled": tracking.get("joints_filled"),
+        "frames_filled": tracking.get("frames_filled"),
+        "poses_path": None if poses.inputs.poses is None else str(poses.inputs.poses),
+        "joints_csv_path": (
+            None if poses.inputs.joints_csv is None else str(poses.inputs.joints_csv)
+        ),
+        "path": str(poses.inputs.video),
+        "sha256": run.sha(poses.inputs.video),
+    }
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def _motion_attrs(first: VideoPoses, up_axis: str) -> dict[str, Any]:
+    skeleton = first.skeleton3d or (first.skeleton2d.to_dict() if first.skeleton2d else None)
+    return {"fps": first.fps, "up_axis": up_axis, "skeleton": skeleton, "source": "video"}
+
+
+def _write_arrays(version: VersionWriter, seqs: list[_Sequence], up_axis: str) -> None:
+    root = version.zarr_group()
+    motion = root.require_group("motion")
+    root.require_group("audio")
+    first = seqs[0].poses
+    motion.attrs.update(_motion_attrs(first, up_axis))
+    writers: dict[str, FrameArrayWriter] = {}
+    if first.keypoints2d is not None:
+        n_joints = first.keypoints2d.shape[1]
+        writers["keypoints2d"] = FrameArrayWriter(
+            motion,
+            "keypoints2d",
+            (n_joints, 3),
+            "float32",
+            attrs={
+                "units": "px",
+                "channels": ["x", "y", "confidence"],
+                "origin": "top-left, y down",
+                "missing": "x, y NaN and confidence 0",
+                "skeleton": first.skeleton2d.to_dict(),
+            },
+        )
+        writers["keypoints2d_mask"] = FrameArrayWriter(
+            motion,
+            "keypoints2d_mask",
+            (n_joints,),
+            "uint8",
+            attrs={"of": "keypoints2d", "codes": MASK_CODES},
+        )
+    if first.positions is not None:
+        n_joints = first.positions.shape[1]
+        writers["positions"] = FrameArrayWriter(
+            motion,
+            "positions",
+            (n_joints, 3),
+            "float32",
+            attrs={
+                "units": "m",
+                "source": "joints CSV (pose lifter)",
+                "missing": "NaN",
+                "skeleton": first.skeleton3d,
+            },
+        )
+        writers["positions_mask"] = FrameArrayWriter(
+            motion,
+            "positions_mask",
+            (n_joints,),
+            "uint8",
+            attrs={"of": "positions", "codes": MASK_CODES},
+        )
+    for seq in seqs:
+        for name, writer in writers.items():
+            writer.append(getattr(seq.poses, name))
+    for writer in writers.values():
+        writer.close()
+
+
+def _counts(seqs: list[_Sequence], music_rows: dict[str, dict], run: _Run) -> dict[str, Any]:
+    videos: dict[str, Any] = {}
+    for seq in seqs:
+        report = dict(seq.poses.report)
+        if seq.music is not None:
+            report["music"] = {
+                "path": str(seq.music.path),
+                "source": seq.music.source,
+                "bpm": seq.music.bpm,
+                "bpm_estimated": seq.music.bpm_estimated,
+            }
+        videos[seq.poses.inputs.seq_id] = report
+    return {
+        "sequences": len(seqs),
+        "frames": sum(s.poses.n_frames for s in seqs),
+        "music": len(music_rows),
+        "skipped": len(run.skipped),
+        "bad_pose_files": sum(len(s.poses.bad_files) for s in seqs),
+        "identity_switches": sum(
+            s.poses.report.get("tracking", {}).get("identity_switches", 0) for s in seqs
+        ),
+        "drifted_sequences": sum(1 for s in seqs if s.poses.report["drift_frames"] != 0),
+        "bpm_estimated": sum(1 for r in music_rows.values() if r["bpm_estimated"]),
+        "videos": videos,
+    }
+
+
+def ingest_video(
+    store: str | Path, videos: list[str | Path], options: VideoIngestOptions
+) -> CommandResult:
+    """Ingest ``videos`` with their poses (``options``) into a new version of ``store``."""
+    options.check()
+    paths = [Path(v) for v in videos]
+    if not paths:
+        raise InputError("no video given")
+    check_unique_stems(paths)
+    run = _Run(options)
+    found = _inventory(run, paths)
+    keys = [_sequence_key(run, inputs) for inputs in progress(found, "checksums", unit="video")]
+    config = options.config()
+    fp = fingerprint(COMMAND, config, keys, __version__)
+    existing = find_version_with_fingerprint(store, fp)
+    if existing is not None:
+        return CommandResult(version=existing, created=False)
+
+    seqs = _process(run, found)
+    fps = seqs[0].poses.fps
+    music_rows = _music_rows(seqs, options.genre, fps)
+    rows: list[dict[str, Any]] = []
+    frame = 0
+    for seq in seqs:
+        music = None if seq.music is None else music_rows[str(seq.music.path)]
+        rows.append(_sequence_row(seq, music, frame, run))
+        frame += seq.poses.n_frames
+    counts = _counts(seqs, music_rows, run)
+
+    layout = StoreLayout(store)
+    parent = layout.latest() if layout.exists() else None
+    with VersionWriter(
+        store,
+        command=COMMAND,
+        config=config,
+        fingerprint=fp,
+        inputs=list(run.described.values()),
+        parent=parent,
+        carry_over=False,
+        wait_for_lock=options.wait_for_lock,
+        stage="ingest",
+    ) as version:
+        for item in run.skipped:
+            version.skip(item["path"], item["error"])
+        _write_arrays(version, seqs, options.up_axis)
+        version.write_table("sequences", build_table("sequences", rows))
+        if music_rows:
+            version.write_table("music", build_table("music", list(music_rows.values())))
+        version.write_table("splits", build_table("splits", []))
+        name = version.commit(counts=counts)
+    return CommandResult(version=name, created=True, counts=counts, skipped=version.skipped)

@@ -1,0 +1,141 @@
+"""Which pose folder, joints CSV and music file belong to each video of ``ingest video``.
+
+Each video becomes one sequence whose ``seq_id`` is the video's file stem (so stems must be
+unique). Its inputs are found by these rules, in order:
+
+OpenPose JSON (``--poses DIR``):
+  1. ``DIR/<stem>/`` when that folder exists (one subfolder per video);
+  2. the files ``DIR/<stem>_<frame>_keypoints.json`` (OpenPose's own naming when it is run on
+     several videos into one folder);
+  3. with a single video only: every ``*_keypoints.json`` in ``DIR`` whatever its prefix (the
+     folder OpenPose wrote for that one video, e.g. ``video_000000000000_keypoints.json``).
+
+3-d joints (``--joints-csv PATH``): ``PATH`` itself when it is a file (a single video only), or
+``PATH/<stem>.csv`` when it is a folder.
+
+Music (``--music PATH``): ``PATH`` itself when it is a file (shared by every video), or
+``PATH/<stem>.{wav,flac,ogg,mp3}`` when it is a folder. Without ``--music`` the video's own
+audio track is used when it has one (see :mod:`dancedata.ingest.video_music`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from dancedata.errors import InputError
+from dancedata.io.audio import MUSIC_EXTENSIONS, find_music
+from dancedata.io.openpose import keypoint_file_prefix, list_keypoint_files
+
+
+@dataclass(frozen=True)
+class VideoInputs:
+    """The files one video's sequence is built from.
+
+    Attributes:
+        seq_id: the video's file stem.
+        video: the video file (its clock is the time base).
+        poses: folder of OpenPose JSON, or None when only 3-d joints are given.
+        poses_prefix: file-name prefix to keep inside ``poses`` (rule 2), else None.
+        joints_csv: 3-d joints CSV, or None.
+        music: music file given with ``--music``, or None (then the video's audio track).
+    """
+
+    seq_id: str
+    video: Path
+    poses: Path | None
+    poses_prefix: str | None
+    joints_csv: Path | None
+    music: Path | None
+
+    def pose_files(self) -> list[Path]:
+        """The OpenPose JSON files of this video, in frame order (empty without poses)."""
+        if self.poses is None:
+            return []
+        return list(list_keypoint_files(self.poses, self.poses_prefix).values())
+
+
+def _has_prefixed_files(folder: Path, stem: str) -> bool:
+    return any(keypoint_file_prefix(p.name) == stem for p in folder.iterdir())
+
+
+def find_pose_folder(poses: Path, video: Path, single: bool) -> tuple[Path, str | None]:
+    """(folder, prefix) of ``video``'s OpenPose output under ``poses`` (module docstring)."""
+    if not poses.is_dir():
+        raise InputError("--poses is not a folder", poses)
+    stem = video.stem
+    if (poses / stem).is_dir():
+        return poses / stem, None
+    if _has_prefixed_files(poses, stem):
+        return poses, stem
+    if single and any(p.name.endswith("_keypoints.json") for p in poses.iterdir()):
+        return poses, None
+    where = f"{poses / stem}/ or {poses / stem}_<frame>_keypoints.json"
+    if single:
+        where += f", or *_keypoints.json files in {poses}"
+    raise InputError(f"no OpenPose output for this video (looked for {where})", video)
+
+
+def find_joints_csv(path: Path, video: Path, single: bool) -> Path:
+    """``video``'s 3-d joints CSV under ``--joints-csv`` (module docstring)."""
+    if path.is_file():
+        if not single:
+            raise InputError(
+                "--joints-csv is one file but several videos are given; point it at a folder "
+                "holding <video stem>.csv for each",
+                path,
+            )
+        return path
+    if path.is_dir():
+        candidate = path / f"{video.stem}.csv"
+        if candidate.is_file():
+            return candidate
+        raise InputError(f"no 3-d joints CSV for this video (looked for {candidate})", video)
+    raise InputError("--joints-csv: no such file or folder", path)
+
+
+def find_music_for(path: Path, video: Path) -> Path:
+    """``video``'s music under ``--music``: the file itself, or ``<stem>.<ext>`` in a folder."""
+    if path.is_file():
+        return path
+    if path.is_dir():
+        found = find_music(path, video.stem)
+        if found is None:
+            exts = "/".join(MUSIC_EXTENSIONS)
+            raise InputError(
+                f"no music for this video (looked for {path / video.stem}{{{exts}}})", video
+            )
+        return found
+    raise InputError("--music: no such file or folder", path)
+
+
+def resolve_inputs(
+    video: Path, poses: Path | None, joints_csv: Path | None, music: Path | None, single: bool
+) -> VideoInputs:
+    """All inputs of one video; raises :class:`InputError` naming what is missing."""
+    if not video.is_file():
+        raise InputError("video file not found", video)
+    folder, prefix = (None, None) if poses is None else find_pose_folder(poses, video, single)
+    if folder is not None:
+        list_keypoint_files(folder, prefix)  # fails early on an empty or mixed folder
+    return VideoInputs(
+        seq_id=video.stem,
+        video=video,
+        poses=folder,
+        poses_prefix=prefix,
+        joints_csv=None if joints_csv is None else find_joints_csv(joints_csv, video, single),
+        music=None if music is None else find_music_for(music, video),
+    )
+
+
+def check_unique_stems(videos: list[Path]) -> None:
+    """Sequence ids are video stems: two videos with one stem are refused, naming both."""
+    seen: dict[str, Path] = {}
+    for video in videos:
+        if video.stem in seen:
+            raise InputError(
+                f"same file stem as {seen[video.stem]}; sequence ids are video stems, so rename "
+                "one of them",
+                video,
+            )
+        seen[video.stem] = video
