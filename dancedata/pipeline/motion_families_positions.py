@@ -1,0 +1,113 @@
+"""The ``positions`` motion family: world joint positions (metres) by forward kinematics.
+
+* SMPL-24 stores (AIST++): the rest joints of an SMPL model file (``--smpl-model`` or
+  ``$DANCEDATA_SMPL_MODEL``; betas 0, as AIST++ has none) posed by ``axis_angle`` and moved by
+  ``trans`` — see :mod:`dancedata.smpl_model`. No model ships with dancedata (licence); without
+  one the family stops with a message saying where to get it.
+* Skeletons with offsets in their attrs (BVH stores): forward kinematics of ``axis_angle`` and
+  ``trans`` over those offsets. BVH ingest already stores positions, so this is only needed to
+  rebuild them; rigs with position channels below the root stored theirs at ingest from the
+  per-frame joint translations and are refused here.
+
+Implements the :class:`~dancedata.pipeline.motion_families.MotionFamily` interface without
+subclassing it (no import cycle with ``motion_families``).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from dancedata.compute.fk import forward_kinematics
+from dancedata.compute.rotations import axis_angle_to_rotmat
+from dancedata.errors import InputError
+from dancedata.pipeline.audio_families import ArraySpec
+from dancedata.smpl import SMPL_JOINTS
+from dancedata.smpl_model import SMPL_MODEL_HELP, cached_smpl_model, smpl_joint_positions
+
+if TYPE_CHECKING:
+    from dancedata.pipeline.motion_families import MotionBatch, MotionSettings
+
+__all__ = ["PositionsFamily", "smpl_model_identity"]
+
+
+@lru_cache(maxsize=8)
+def _sha256(path: str, mtime_ns: int, size: int) -> str:
+    from dancedata.store.checksums import sha256_file
+
+    return sha256_file(path)
+
+
+def smpl_model_identity(path: str | None) -> dict[str, Any] | None:
+    """File name and sha256 of the SMPL model (fingerprinted), or None without one."""
+    if not path:
+        return None
+    file = Path(path)
+    if not file.is_file():
+        raise InputError(f"SMPL model file not found. {SMPL_MODEL_HELP}", file)
+    stat = file.stat()
+    return {"file": file.name, "sha256": _sha256(str(file), stat.st_mtime_ns, stat.st_size)}
+
+
+def _is_smpl(skeleton: dict[str, Any]) -> bool:
+    joints = tuple(skeleton.get("joints") or ())
+    return joints == SMPL_JOINTS or (skeleton.get("name") == "smpl24" and len(joints) == 24)
+
+
+class PositionsFamily:
+    """World joint positions from joint rotations and the root translation."""
+
+    name = "positions"
+    requires = ("axis_angle", "trans")
+
+    def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
+        attrs: dict[str, Any] = {"units": "m", "method": "forward kinematics"}
+        model = smpl_model_identity(settings.smpl_model)
+        if model is not None:
+            attrs["smpl_model"] = model
+        return [ArraySpec("positions", (n_joints, 3), np.float32, attrs)]
+
+    def compute(self, batch: MotionBatch, settings: MotionSettings) -> dict[str, np.ndarray]:
+        skeleton = batch.attrs.get("skeleton") or {}
+        axis_angle, trans = batch.arrays["axis_angle"], batch.arrays["trans"]
+        if _is_smpl(skeleton):
+            if not settings.smpl_model:
+                raise InputError(
+                    f"the positions of an SMPL store need the SMPL model: {SMPL_MODEL_HELP}"
+                )
+            model = cached_smpl_model(settings.smpl_model)
+            parents = tuple(int(p) for p in skeleton.get("parents") or model.parents)
+            if model.parents != parents:
+                raise InputError(
+                    f"the model's kinematic tree ({model.n_joints} joints) is not the store's "
+                    "SMPL-24 tree",
+                    settings.smpl_model,
+                )
+            return {"positions": smpl_joint_positions(model, axis_angle, trans)}
+        if skeleton.get("offsets") is not None:
+            if _has_joint_translations(skeleton):
+                raise InputError(
+                    "this rig has position channels below the root; its positions were computed "
+                    "at ingest from the per-frame joint translations and are already stored: "
+                    "leave 'positions' out"
+                )
+            offsets = np.asarray(skeleton["offsets"], dtype=np.float64)
+            positions = forward_kinematics(
+                skeleton["parents"], offsets, axis_angle_to_rotmat(axis_angle), trans
+            )
+            return {"positions": positions}
+        raise InputError(
+            f"cannot compute positions for skeleton {skeleton.get('name')!r}: it is not SMPL-24 "
+            "and its attrs hold no offsets"
+        )
+
+    def config(self, settings: MotionSettings) -> dict[str, Any]:
+        return {"smpl_model": smpl_model_identity(settings.smpl_model), "betas": "zeros"}
+
+
+def _has_joint_translations(skeleton: dict[str, Any]) -> bool:
+    channels = skeleton.get("channels") or []
+    return any(any(c.endswith("position") for c in chans) for chans in channels[1:])
