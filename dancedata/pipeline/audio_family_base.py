@@ -1,0 +1,155 @@
+"""What every audio feature family is built on: array specs, settings, the per-track context.
+
+A family turns one music track into ``audio/...`` arrays with one row per feature frame (the
+motion frame rate, ``cfg.fps``). It sees the track through a :class:`TrackAudio`, which decodes
+the samples only when a family asks for them (a track whose every family comes from the feature
+cache is never decoded) and holds intermediate results that several families share, such as the
+four stems: ``track.shared(key, make)`` runs ``make`` once per track and key, so the stems are
+separated once and feed both the per-stem features and the NMFD of the drums stem.
+
+Families are stateless; what they compute is set by :class:`AudioSettings` (picklable, passed to
+worker processes with the job) and by the FACT :class:`AudioFeatureConfig`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dancedata.compute.audio_features import AudioFeatureConfig
+
+STEM_CHOICES: tuple[str, ...] = ("offline", "openunmix", "none")
+# Distributions whose versions can change any family's numbers (decoding, resampling, features).
+BASE_LIBRARIES: tuple[str, ...] = ("librosa", "numpy", "scipy", "soundfile", "soxr")
+
+
+@dataclass(frozen=True)
+class ArraySpec:
+    """One array a family writes, relative to the ``audio`` group."""
+
+    path: str
+    row_shape: tuple[int, ...]
+    dtype: Any
+    attrs: dict[str, Any] | None = None
+
+
+@dataclass(frozen=True)
+class AudioSettings:
+    """Settings of the audio families beyond the FACT recipe; each family fingerprints the ones
+    it reads through its ``config``.
+
+    ``stems``: stem backend, ``offline`` (weight-free), ``openunmix`` (pretrained
+    ``stems_model`` weights from ``stems_weights`` or the torch hub cache) or ``none``.
+    ``nmfd_iterations`` (KL multiplicative updates) and ``nmfd_template_frames`` (template length
+    in feature frames, 8 → 133 ms at 60 fps) set the drums NMFD. ``stft_sr`` (Hz) is the rate of
+    the per-motion-frame STFT family; ``tempogram_frames`` its window in feature frames.
+    """
+
+    stems: str = "offline"
+    stems_model: str = "umxhq"
+    stems_weights: str | None = None
+    stems_device: str = "cpu"
+    nmfd_iterations: int = 30
+    nmfd_template_frames: int = 8
+    stft_sr: int = 16000
+    tempogram_frames: int = 384
+
+
+class TrackAudio:
+    """One music track as the families see it.
+
+    ``y`` (mono float32 at ``cfg.sr`` Hz) is decoded from ``path`` on first use. ``timings``
+    collects wall seconds of the decode (``decode``) and of every shared computation (by key).
+    """
+
+    def __init__(
+        self,
+        path: str,
+        bpm: float | None,
+        cfg: AudioFeatureConfig,
+        *,
+        y: np.ndarray | None = None,
+    ) -> None:
+        self.path = path
+        self.bpm = bpm
+        self.cfg = cfg
+        self._y = y
+        self._shared: dict[str, Any] = {}
+        self.timings: dict[str, float] = {}
+
+    @property
+    def decoded(self) -> bool:
+        return self._y is not None
+
+    @property
+    def y(self) -> np.ndarray:
+        if self._y is None:
+            from dancedata.io.audio import load_mono
+
+            start = time.perf_counter()
+            self._y = load_mono(self.path, self.cfg.sr)
+            self.timings["decode"] = time.perf_counter() - start
+        return self._y
+
+    def shared(self, key: str, make: Callable[[], Any]) -> Any:
+        """``make()`` computed once per track and ``key`` (e.g. the stems of one backend)."""
+        if key not in self._shared:
+            self.y  # noqa: B018 - decode first, so its time is not billed to ``key``
+            start = time.perf_counter()
+            self._shared[key] = make()
+            self.timings[key] = time.perf_counter() - start
+        return self._shared[key]
+
+    def shared_seconds(self) -> float:
+        """Seconds spent so far in the decode and in shared computations."""
+        return float(sum(self.timings.values()))
+
+
+class AudioFamily:
+    """Base class: ``name``, ``arrays``, ``compute`` (or ``compute_track``) and ``config``.
+
+    ``compute(y, bpm, cfg)`` suits a family that needs only the samples; a family that shares
+    work with others overrides ``compute_track``. ``config`` lists every setting that changes
+    the numbers (it goes into the manifest config, the fingerprint and the feature cache key);
+    ``group_attrs`` gives attrs of groups under ``audio`` (e.g. the stem backend on
+    ``audio/stems``).
+    """
+
+    name: str = ""
+    uses_bpm: bool = False  # the track's known tempo changes the numbers (cache key)
+
+    def arrays(
+        self, cfg: AudioFeatureConfig, settings: AudioSettings | None = None
+    ) -> list[ArraySpec]:
+        raise NotImplementedError
+
+    def compute(
+        self, y: np.ndarray, bpm: float | None, cfg: AudioFeatureConfig
+    ) -> dict[str, np.ndarray]:
+        """Arrays keyed by :attr:`ArraySpec.path`, each with one row per feature frame."""
+        raise NotImplementedError
+
+    def compute_track(
+        self, track: TrackAudio, settings: AudioSettings | None = None
+    ) -> dict[str, np.ndarray]:
+        return self.compute(track.y, track.bpm, track.cfg)
+
+    def config(self, settings: AudioSettings | None = None) -> dict[str, Any]:
+        return {}
+
+    def group_attrs(
+        self, cfg: AudioFeatureConfig, settings: AudioSettings | None = None
+    ) -> dict[str, dict[str, Any]]:
+        return {}
+
+    def check(self, settings: AudioSettings) -> str | None:
+        """Why the family cannot run with ``settings`` (None when it can)."""
+        return None
+
+    def libraries(self, settings: AudioSettings | None = None) -> tuple[str, ...]:
+        """Distributions whose versions go into the family's feature-cache key."""
+        return BASE_LIBRARIES
