@@ -128,8 +128,8 @@ def ingest_video_cmd(
 ) -> None:
     """Read OpenPose JSON and/or 3-d joint CSVs made from videos, follow one dancer, align the
     poses to each video's clock (pose frame i at i / video fps) and resample them by timestamp
-    into a new store version: motion/keypoints2d (x, y px, confidence; NaN where missing) with
-    motion/keypoints2d_mask (0 missing, 1 detected, 2 gap-filled), motion/positions (metres).
+    into a new store version: motion/pose2d (x, y px, confidence; NaN where missing) with
+    motion/pose2d_mask (0 missing, 1 detected, 2 gap-filled), motion/positions (metres).
     Pose and video frame counts must agree unless --allow-drift."""
     setup(quiet)
     from dancedata.ingest.video import VideoIngestOptions, ingest_video

@@ -151,8 +151,8 @@ def test_raga_1person_with_music_and_bpm(real_data: Path, tmp_path: Path) -> Non
     attrs = ds._reader.group_attrs("motion")
     assert attrs["fps"] == 25.0 and attrs["skeleton"]["name"] == "openpose_body25"
     assert attrs["skeleton"]["joints"] == list(BODY_25.joints)
-    kp = ds.motion("short_video", "keypoints2d")
-    mask = ds.motion("short_video", "keypoints2d_mask")
+    kp = ds.motion("short_video", "pose2d")
+    mask = ds.motion("short_video", "pose2d_mask")
     assert kp.shape == (125, 25, 3) and kp.dtype == np.float32 and mask.dtype == np.uint8
     # Stored values are the raw JSON where detected; NaN with confidence 0 where missing.
     raw = json.loads((folder / "output_json" / "video_000000000007_keypoints.json").read_text())
@@ -217,7 +217,7 @@ def test_raga_3people_drift_refused_then_recorded(real_data: Path, tmp_path: Pat
     assert report["tracking"]["n_labels"] == 3 and report["tracking"]["identity_switches"] == 0
     assert ds.manifest["config"]["allow_drift"] is True
     assert ds.manifest["counts"]["drifted_sequences"] == 1
-    assert ds.motion("short_video", "keypoints2d").shape == (125, 25, 3)
+    assert ds.motion("short_video", "pose2d").shape == (125, 25, 3)
 
 
 @pytest.mark.real_data
@@ -261,8 +261,8 @@ def test_generated_video_resampled_on_its_clock(
     seq = ds.sequence("clip")
     assert seq["n_frames"] == expected and seq["fps"] == fps
     assert seq["music_missing"] is True and seq["bpm"] is None  # mp4v clip: no audio track
-    kp = ds.motion("clip", "keypoints2d").astype(np.float64)
-    mask = ds.motion("clip", "keypoints2d_mask")
+    kp = ds.motion("clip", "pose2d").astype(np.float64)
+    mask = ds.motion("clip", "pose2d_mask")
     assert kp.shape == (expected, 25, 3)
 
     times = np.arange(expected) / fps
@@ -280,7 +280,7 @@ def test_decoded_frame_times_agree_on_a_constant_rate_video(tmp_path: Path) -> N
     for mode in ("nominal", "decoded"):
         ingest_video(tmp_path / mode, [video], options(poses=poses, fps=25.0, frame_times=mode))
         ds = dancedata.open_store(tmp_path / mode)
-        results[mode] = ds.motion("clip", "keypoints2d")
+        results[mode] = ds.motion("clip", "pose2d")
         assert ds.manifest["config"]["frame_times"] == mode
     np.testing.assert_allclose(results["decoded"], results["nominal"], atol=1e-3)
     report = dancedata.open_store(tmp_path / "decoded").manifest["counts"]["videos"]["clip"]
@@ -296,7 +296,7 @@ def test_gaps_filled_up_to_max_gap_and_masked(tmp_path: Path) -> None:
     store = tmp_path / "store"
     result = ingest_video(store, [video], options(poses=poses, max_gap=3))
     ds = dancedata.open_store(store)
-    kp, mask = ds.motion("clip", "keypoints2d"), ds.motion("clip", "keypoints2d_mask")
+    kp, mask = ds.motion("clip", "pose2d"), ds.motion("clip", "pose2d_mask")
     assert (mask[[5, 6]] == 2).all() and (mask[12:18] == 0).all()
     assert (mask[frames] == 1).all()
     # Interpolated across the short gap: linear poses come back exactly, confidence 0.
@@ -313,7 +313,7 @@ def test_gap_filled_flag_survives_resampling(tmp_path: Path) -> None:
     video = write_video(tmp_path / "clip.mp4", fps, n)
     poses = write_openpose(tmp_path / "json", fps, [i for i in range(n) if i != 10])
     ingest_video(tmp_path / "s", [video], options(poses=poses, fps=40.0, max_gap=1))
-    mask = dancedata.open_store(tmp_path / "s").motion("clip", "keypoints2d_mask")[:, 0]
+    mask = dancedata.open_store(tmp_path / "s").motion("clip", "pose2d_mask")[:, 0]
     # Target frames 19, 20, 21 (0.475, 0.5, 0.525 s) touch the filled source frame 10 (0.5 s).
     assert mask[19:22].tolist() == [2, 2, 2] and (np.delete(mask, [19, 20, 21]) == 1).all()
 
@@ -351,7 +351,7 @@ def test_joints_csv_with_and_without_openpose(tmp_path: Path) -> None:
     attrs = ds._reader.group_attrs("motion")
     assert attrs["skeleton"]["name"] == "openpose_body25"
     assert ds.zarr("motion/positions").attrs["units"] == "m"
-    assert ds.motion("clip", "keypoints2d").shape == (n, 25, 3)
+    assert ds.motion("clip", "pose2d").shape == (n, 25, 3)
     assert result.counts["videos"]["clip"]["joints_csv"]["units"] == "mm"
 
     # Headerless, COCO-18 order, no OpenPose at all: positions only.
@@ -401,7 +401,7 @@ def test_several_videos_map_to_pose_folders(tmp_path: Path) -> None:
     assert "no OpenPose output" in skipped[0]["error"]
     assert "no 'people' list" in skipped[1]["error"]
     assert ds.seq_ids() == ["a", "c"]
-    assert (ds.motion("c", "keypoints2d_mask")[3] == 2).all()  # the bad file's frame, gap-filled
+    assert (ds.motion("c", "pose2d_mask")[3] == 2).all()  # the bad file's frame, gap-filled
 
 
 def test_same_inputs_write_nothing(tmp_path: Path) -> None:
@@ -486,7 +486,7 @@ def test_chain_ingest_featurize_segment_validate_loader(tmp_path: Path) -> None:
     featurized = StoreLayout(store).read_manifest("v2")["counts"]
     assert "axis_angle" in featurized["motion_absent"]["rotations"]
     assert not any(n.startswith("motion/rot") for n in ds.array_names())
-    kp = ds.motion("clip", "keypoints2d")
+    kp = ds.motion("clip", "pose2d")
     assert kp.shape == (120, 25, 3)
     assert ds.audio_frames("clip") == 120
     # Audio runs at the motion rate (sr = 30 × 512): clicks every 0.5 s peak every 15 frames.

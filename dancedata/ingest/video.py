@@ -10,9 +10,9 @@ one new version holding only these sequences (its parent is recorded, nothing is
 Every input is read and checked before the version is opened, so a bad input leaves the store
 exactly as it was. Stored arrays (docs/STORE.md, "Video-derived poses"):
 
-* ``motion/keypoints2d`` (F, J, 3) float32: x, y in pixels (origin top-left, y down) and the
+* ``motion/pose2d`` (F, J, 3) float32: x, y in pixels (origin top-left, y down) and the
   detector's confidence; x, y NaN and confidence 0 where missing. J = 25 (BODY_25) or 18 (COCO).
-* ``motion/keypoints2d_mask`` (F, J) uint8: 0 missing, 1 detected, 2 gap-filled.
+* ``motion/pose2d_mask`` (F, J) uint8: 0 missing, 1 detected, 2 gap-filled.
 * ``motion/positions`` (F, K, 3) float32 metres from ``--joints-csv``, NaN where missing, and
   ``motion/positions_mask`` (F, K) uint8 with the same codes.
 """
@@ -319,9 +319,9 @@ def _write_arrays(version: VersionWriter, seqs: list[_Sequence], up_axis: str) -
     writers: dict[str, FrameArrayWriter] = {}
     if first.keypoints2d is not None:
         n_joints = first.keypoints2d.shape[1]
-        writers["keypoints2d"] = FrameArrayWriter(
+        writers["pose2d"] = FrameArrayWriter(
             motion,
-            "keypoints2d",
+            "pose2d",
             (n_joints, 3),
             "float32",
             attrs={
@@ -332,12 +332,12 @@ def _write_arrays(version: VersionWriter, seqs: list[_Sequence], up_axis: str) -
                 "skeleton": first.skeleton2d.to_dict(),
             },
         )
-        writers["keypoints2d_mask"] = FrameArrayWriter(
+        writers["pose2d_mask"] = FrameArrayWriter(
             motion,
-            "keypoints2d_mask",
+            "pose2d_mask",
             (n_joints,),
             "uint8",
-            attrs={"of": "keypoints2d", "codes": MASK_CODES},
+            attrs={"of": "pose2d", "codes": MASK_CODES},
         )
     if first.positions is not None:
         n_joints = first.positions.shape[1]
@@ -362,9 +362,14 @@ def _write_arrays(version: VersionWriter, seqs: list[_Sequence], up_axis: str) -
         )
     for seq in seqs:
         for name, writer in writers.items():
-            writer.append(getattr(seq.poses, name))
+            writer.append(getattr(seq.poses, _POSE_FIELDS.get(name, name)))
     for writer in writers.values():
         writer.close()
+
+
+# Stored array name → field of the per-video pose result. Video 2-d poses are stored as
+# motion/pose2d (one tracked dancer, one view), apart from AIST++'s multi-view keypoints2d.
+_POSE_FIELDS = {"pose2d": "keypoints2d", "pose2d_mask": "keypoints2d_mask"}
 
 
 def _counts(seqs: list[_Sequence], music_rows: dict[str, dict], run: _Run) -> dict[str, Any]:

@@ -11,7 +11,8 @@ To add a family, subclass :class:`MotionFamily` and add an instance to :data:`FA
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import os
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -33,7 +34,8 @@ BASE_ARRAYS: tuple[str, ...] = (
     "euler",  # (F, J, 3) radians, BVH: each joint's own order
     "positions",  # (F, J, 3) metres, world joint positions
     "keypoints3d",  # (F, 17, 3) metres
-    "keypoints2d",  # video poses, pixels
+    "keypoints2d",  # AIST++ (F, 9 views, 17, 3): x, y pixels, confidence
+    "pose2d",  # video (F, J, 3): one tracked dancer, x, y pixels, confidence
 )
 
 
@@ -65,6 +67,9 @@ class MotionSettings:
 
     representations: tuple[str, ...] = REPRESENTATIONS
     euler_order: EulerOrder = "XYZ"
+    # SMPL model file for the positions family (see dancedata.smpl_model); the CLI's
+    # --smpl-model sets $DANCEDATA_SMPL_MODEL.
+    smpl_model: str | None = field(default_factory=lambda: os.environ.get("DANCEDATA_SMPL_MODEL"))
 
 
 class MotionFamily:
@@ -118,5 +123,18 @@ class RotationsFamily(MotionFamily):
         }
 
 
-FAMILIES: dict[str, MotionFamily] = {"rotations": RotationsFamily()}
+def _more_families() -> dict[str, MotionFamily]:
+    """Families defined in their own modules (duck-typed MotionFamily, so no import cycle)."""
+    from dancedata.pipeline.motion_families_kinematics import (
+        AngularFamily,
+        GeometricFamily,
+        KinematicsFamily,
+    )
+    from dancedata.pipeline.motion_families_positions import PositionsFamily
+
+    families = (PositionsFamily(), KinematicsFamily(), AngularFamily(), GeometricFamily())
+    return {family.name: family for family in families}  # type: ignore[misc]
+
+
+FAMILIES: dict[str, MotionFamily] = {"rotations": RotationsFamily(), **_more_families()}
 DEFAULT_FAMILIES: tuple[str, ...] = ("rotations",)
