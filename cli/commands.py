@@ -1,3 +1,14 @@
 """Imports every command module so that each registers its commands on the Typer app."""
 
-from dancedata.cli import apps, ingest, inspect, process, synth  # noqa: F401
+from dancedata.cli import (  # noqa: F401
+    apps,
+    cache,
+    export_bvh,
+    ingest,
+    ingest_bvh,
+    ingest_video,
+    inspect,
+    process,
+    synth,
+    unlock,
+)

@@ -18,6 +18,23 @@ Wait = Annotated[
         "--wait", help="If another writer holds the store lock, wait for it instead of failing."
     ),
 ]
+Workers = Annotated[
+    int,
+    typer.Option(
+        "--workers",
+        "-j",
+        min=1,
+        help="Local worker processes for independent work units (same bytes as 1 worker).",
+    ),
+]
+Dask = Annotated[
+    str | None,
+    typer.Option(
+        "--dask",
+        help="Run work units on Dask: a scheduler address (tcp://host:8786) or local:N to "
+        "start N local worker processes. Needs the 'scale' extra.",
+    ),
+]
 VersionOpt = Annotated[
     str | None, typer.Option("--version", "-V", help="Version to read (default: latest).")
 ]

@@ -7,13 +7,26 @@ from typing import Annotated
 
 import typer
 from dancedata.cli.apps import ingest_app
-from dancedata.cli.common import Json, OnError, OnErrorOpt, Quiet, Wait, report, setup, split_csv
+from dancedata.cli.common import (
+    Json,
+    OnError,
+    OnErrorOpt,
+    Quiet,
+    Wait,
+    Workers,
+    report,
+    setup,
+    split_csv,
+)
 
 
 @ingest_app.command("aist")
 def ingest_aist_cmd(
     raw: Annotated[Path, typer.Argument(help="AIST++ annotation root (motions/, splits/, ...).")],
-    store: Annotated[Path, typer.Option("--store", "-s", help="Store directory (created if new).")],
+    store: Annotated[
+        str,
+        typer.Option("--store", "-s", help="Store directory or fsspec URL (created if new)."),
+    ],
     music_dir: Annotated[
         Path | None,
         typer.Option(help="Folder of <music_id>.wav/.mp3/.flac (default: RAW/wav or RAW/music)."),
@@ -30,13 +43,23 @@ def ingest_aist_cmd(
     situations: Annotated[
         str | None, typer.Option(help="Only these situations: sBM (basic), sFM (advanced).")
     ] = None,
+    annotations: Annotated[
+        str | None,
+        typer.Option(
+            help="Annotation kinds to store, comma-separated: keypoints3d, keypoints2d, cameras "
+            "(default: every kind on disk; '' for none). Sequences lacking a kind get NaN rows."
+        ),
+    ] = None,
     on_error: OnErrorOpt = OnError.fail,
+    workers: Workers = 1,
     wait: Wait = False,
     quiet: Quiet = False,
     as_json: Json = False,
 ) -> None:
-    """Read AIST++ motion pickles (safely: nothing in them is executed), splits, ignore list and
-    music into a new store version. Translation is stored in metres (smpl_trans / smpl_scaling)."""
+    """Read AIST++ motion and keypoint pickles (safely: nothing in them is executed), cameras,
+    splits (crossmodal, pose), ignore list and music into a new store version. Lengths are
+    stored in metres: translation = smpl_trans / smpl_scaling, keypoints3d and camera
+    translation cm / 100."""
     setup(quiet)
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 
@@ -46,7 +69,9 @@ def ingest_aist_cmd(
         genres=split_csv(genres),
         exclude_genres=split_csv(exclude_genres),
         situations=split_csv(situations),
+        annotations=(split_csv(annotations) or []) if annotations is not None else None,
         on_error=on_error.value,
         wait_for_lock=wait,
+        workers=workers,
     )
     report(ingest_aist(store, raw, options), "ingest aist", as_json)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -13,7 +12,7 @@ from dancedata.cli.main import app
 
 @app.command()
 def info(
-    store: Annotated[Path, typer.Argument(help="Store directory.")],
+    store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
     version: VersionOpt = None,
     as_json: Json = False,
 ) -> None:
@@ -26,7 +25,7 @@ def info(
 
 @app.command()
 def versions(
-    store: Annotated[Path, typer.Argument(help="Store directory.")],
+    store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
     as_json: Json = False,
 ) -> None:
     """List committed versions, oldest first, with the command that made each."""
@@ -47,6 +46,10 @@ def versions(
                 "fingerprint": manifest.get("fingerprint", "")[:12],
             }
         )
+    from dancedata.store.validate import store_notes
+
+    for note in store_notes(store):  # on stderr, so --json output stays clean
+        typer.echo(f"  note: {note}", err=True)
     if as_json:
         typer.echo(json.dumps(rows, indent=2))
         return
@@ -56,31 +59,42 @@ def versions(
             f"{mark} {row['version']:<5} {row['command']:<14} parent {str(row['parent']):<5} "
             f"{row['created_at']}  {row['fingerprint']}"
         )
-    leftovers = layout.temp_dirs()
-    if leftovers:
-        typer.echo(
-            f"  ({len(leftovers)} unfinished temporary version(s) will be removed by the next "
-            "writer)",
-            err=True,
-        )
 
 
 @app.command()
 def validate(
-    store: Annotated[Path, typer.Argument(help="Store directory.")],
+    store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
     version: VersionOpt = None,
+    deep: Annotated[
+        bool,
+        typer.Option(
+            "--deep",
+            help="Also re-hash every chunk and table against the checksums recorded at commit "
+            "(reads all the data).",
+        ),
+    ] = False,
     as_json: Json = False,
 ) -> None:
-    """Check the store against schemas/store.schema.json; exit 1 on any contract violation."""
-    from dancedata.store.validate import validate_store
+    """Check the store against schemas/store.schema.json; exit 1 on any contract violation.
+    With --deep, name every corrupted chunk, array and table."""
+    from dancedata.store.validate import store_notes, validate_store
 
-    problems = validate_store(store, version)
+    problems = validate_store(store, version, deep=deep)
+    notes = store_notes(store)
     if as_json:
-        typer.echo(json.dumps({"valid": not problems, "problems": problems}, indent=2))
-    elif problems:
-        for problem in problems:
-            typer.echo(f"invalid: {problem}", err=True)
+        typer.echo(
+            json.dumps(
+                {"valid": not problems, "deep": deep, "problems": problems, "notes": notes},
+                indent=2,
+            )
+        )
     else:
-        typer.echo(f"valid: {store}")
+        for note in notes:
+            typer.echo(f"note: {note}", err=True)
+        if problems:
+            for problem in problems:
+                typer.echo(f"invalid: {problem}", err=True)
+        else:
+            typer.echo(f"valid{' (deep)' if deep else ''}: {store}")
     if problems:
         raise typer.Exit(code=1)

@@ -2,17 +2,40 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from dancedata.cli.common import Json, Quiet, VersionOpt, Wait, report, setup, split_csv
+from dancedata.cli.audio_options import (
+    AudioFamilies,
+    CacheDir,
+    NmfdIterations,
+    NmfdTemplateFrames,
+    Stems,
+    StemsModel,
+    StemsWeights,
+    StftSr,
+    TempogramFrames,
+    UseCache,
+)
+from dancedata.cli.common import (
+    Dask,
+    Json,
+    Quiet,
+    VersionOpt,
+    Wait,
+    Workers,
+    report,
+    setup,
+    split_csv,
+)
 from dancedata.cli.main import app
 
 
 @app.command()
 def featurize(
-    store: Annotated[Path, typer.Argument(help="Store directory.")],
+    store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
     representations: Annotated[
         str,
         typer.Option(help="Motion representations, comma-separated: rotmat,euler,quat,rot6d."),
@@ -25,32 +48,80 @@ def featurize(
         ),
     ] = None,
     motion: Annotated[bool, typer.Option(help="Compute motion representations.")] = True,
+    motion_families: Annotated[
+        str,
+        typer.Option(
+            help="Motion families, comma-separated: rotations; positions (FK; SMPL stores need "
+            "--smpl-model); kinematics (velocity, acceleration, jerk, motion beats, kinetic "
+            "features, from positions); angular (angular velocity, weight effort); geometric "
+            "(SMPL-24 only). A family whose input arrays the store lacks is reported absent."
+        ),
+    ] = "rotations",
+    smpl_model: Annotated[
+        Path | None,
+        typer.Option(
+            help="SMPL model file (.npz/.pkl) for positions of SMPL stores; not bundled "
+            "(licence): get it from https://smpl.is.tue.mpg.de. Default: $DANCEDATA_SMPL_MODEL."
+        ),
+    ] = None,
     audio: Annotated[bool, typer.Option(help="Compute audio features (once per track).")] = True,
+    audio_families: AudioFamilies = None,
+    stems: Stems = "offline",
+    stems_model: StemsModel = "umxhq",
+    stems_weights: StemsWeights = None,
+    nmfd_iterations: NmfdIterations = 30,
+    nmfd_template_frames: NmfdTemplateFrames = 8,
+    stft_sr: StftSr = 16000,
+    tempogram_frames: TempogramFrames = 384,
+    cache: UseCache = True,
+    cache_dir: CacheDir = None,
+    workers: Workers = 1,
+    dask: Dask = None,
     version: VersionOpt = None,
     wait: Wait = False,
     quiet: Quiet = False,
     as_json: Json = False,
 ) -> None:
-    """Add motion representations and FACT audio features (onset_env, mfcc, chroma_cens,
-    onset_peaks, beats at fps × 512 Hz, hop 512) as a new version."""
+    """Add motion representations and audio features as a new version: by default FACT
+    (onset_env, mfcc, chroma_cens, onset_peaks, beats at fps × 512 Hz, hop 512), per-stem
+    features of the offline stems and the NMFD of the drums stem. Per-track audio features
+    are cached by content (see `dancedata cache list`)."""
     setup(quiet)
+    from dancedata.pipeline.audio_families import AudioSettings
     from dancedata.pipeline.featurize import FeaturizeOptions
     from dancedata.pipeline.featurize import featurize as run
 
+    if smpl_model is not None:  # read by MotionSettings (workers inherit the environment)
+        os.environ["DANCEDATA_SMPL_MODEL"] = str(smpl_model.resolve())
     options = FeaturizeOptions(
         motion=motion,
+        motion_families=split_csv(motion_families) or [],
         audio=audio,
         representations=split_csv(representations) or [],
         euler_order=euler_order,
         version=version,
         wait_for_lock=wait,
+        workers=workers,
+        dask=dask,
+        audio_families=split_csv(audio_families),
+        audio_settings=AudioSettings(
+            stems=stems,
+            stems_model=stems_model,
+            stems_weights=str(stems_weights.resolve()) if stems_weights else None,
+            nmfd_iterations=nmfd_iterations,
+            nmfd_template_frames=nmfd_template_frames,
+            stft_sr=stft_sr,
+            tempogram_frames=tempogram_frames,
+        ),
+        use_cache=cache,
+        cache_dir=str(cache_dir) if cache_dir else None,
     )
     report(run(store, options), "featurize", as_json)
 
 
 @app.command()
 def segment(
-    store: Annotated[Path, typer.Argument(help="Store directory.")],
+    store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
     beats_per_measure: Annotated[int, typer.Option(min=1, help="Beats in one measure.")] = 4,
     phase: Annotated[
         float, typer.Option(help="Downbeat offset in frames (0: the sequence starts on one).")

@@ -29,6 +29,9 @@ if TYPE_CHECKING:
     import pyarrow as pa
     import zarr
 
+    from dancedata.cameras import CameraSet
+    from dancedata.windows import MeasureWindows
+
 # Derived layouts (CONTRACT.md §3): name → ordered parts, each (kind, array, width or None).
 VIEWS: dict[str, list[tuple[str, str]]] = {
     "fact_motion_225": [("zeros6", ""), ("motion", "trans"), ("motion", "rotmat")],
@@ -41,9 +44,15 @@ VIEWS: dict[str, list[tuple[str, str]]] = {
         ("audio", "beats"),
     ],
     "thesis_audio_22": [("audio", "mfcc"), ("audio", "onset_env"), ("audio", "onset_peaks")],
+    # The thesis's 22-d M_full of each stem, stems in contract order: drums, bass, vocals, other.
+    "thesis_stems_88": [
+        ("audio", f"stems/{stem}/{feature}")
+        for stem in ("drums", "bass", "vocals", "other")
+        for feature in ("mfcc", "onset_env", "onset_peaks")
+    ],
 }
 MOTION_VIEWS = ("fact_motion_225", "thesis_euler_75")
-AUDIO_VIEWS = ("fact_audio_35", "thesis_audio_22")
+AUDIO_VIEWS = ("fact_audio_35", "thesis_audio_22", "thesis_stems_88")
 
 
 @dataclass(frozen=True)
@@ -166,9 +175,11 @@ class DanceStore:
 
     def view(self, seq_id: str, name: str) -> np.ndarray:
         """A derived layout as float32 (frames, D): fact_motion_225, thesis_euler_75,
-        fact_audio_35 or thesis_audio_22 (CONTRACT.md §3)."""
+        fact_audio_35, thesis_audio_22 (CONTRACT.md §3) or thesis_stems_88 (the 22-d
+        per stem: drums, bass, vocals, other; docs/STORE.md)."""
         if name not in VIEWS:
             raise StoreError(f"unknown view {name!r}; known: {sorted(VIEWS)}")
+        self._require_view_arrays(name)
         parts: list[np.ndarray] = []
         n_frames = None
         for kind, array in VIEWS[name]:
@@ -182,6 +193,106 @@ class DanceStore:
         assert n_frames is not None
         filled = [np.zeros((n_frames, 6), np.float32) if p is None else p[:n_frames] for p in parts]
         return np.concatenate(filled, axis=1)
+
+    def _require_view_arrays(self, name: str) -> None:
+        """A clear error when a view's arrays are absent, saying whether featurize can help:
+        rotation views need joint rotations, which poses from video (or any source with
+        positions only) do not have."""
+        missing = [
+            f"{kind}/{array}"
+            for kind, array in VIEWS[name]
+            if kind != "zeros6" and not self._reader.has_array(f"{kind}/{array}")
+        ]
+        if not missing:
+            return
+        message = f"view {name!r} needs {', '.join(missing)}, which version {self.version} lacks"
+        if name in MOTION_VIEWS and not self._reader.has_array("motion/axis_angle"):
+            sources = sorted({str(r.get("source")) for r in self._seq_rows.values()})
+            held = [n for n in self.array_names() if n.startswith("motion/")]
+            message += (
+                f": this store holds no joint rotations (sources: {', '.join(sources)}; motion "
+                f"arrays: {', '.join(held) or 'none'}), so featurize cannot derive them; read "
+                "the stored arrays with motion(seq_id, name) instead"
+            )
+        else:
+            message += " (run `dancedata featurize`)"
+        raise StoreError(message, self.path)
+
+    # -- stems and NMFD ------------------------------------------------------------------------
+    def _audio_or_hint(self, seq_id: str, name: str, hint: str) -> np.ndarray:
+        if not self._reader.has_array(f"audio/{name}"):
+            raise StoreError(f"version {self.version} has no audio/{name} ({hint})", self.path)
+        return self.audio(seq_id, name)
+
+    def stem_audio(self, seq_id: str, stem: str, feature: str = "onset_env") -> np.ndarray:
+        """``audio/stems/<stem>/<feature>`` aligned to the sequence (see :meth:`audio`);
+        ``stem`` in drums, bass, vocals, other; ``feature`` onset_env, mfcc or onset_peaks."""
+        return self._audio_or_hint(
+            seq_id, f"stems/{stem}/{feature}", "run `dancedata featurize` with a stem backend"
+        )
+
+    @property
+    def stem_backend(self) -> dict[str, Any]:
+        """Attrs of ``audio/stems``: ``backend`` and its full ``backend_config``."""
+        return self._reader.group_attrs("audio/stems")
+
+    def weighted_stem_onsets(
+        self,
+        seq_id: str,
+        weights: dict[str, float] | None = None,
+        normalize: bool = False,
+    ) -> np.ndarray:
+        """The thesis's weighted stem onset curve Σ_stem w_stem · onset_env_stem, (frames,)
+        float32, from the stored per-stem onset envelopes (nothing extra is stored).
+        ``weights`` maps stem → weight (default all 1; stems absent from it weigh 0 unless
+        it is None); ``normalize`` divides each curve by its maximum over the sequence first."""
+        from dancedata.compute.stem_features import DEFAULT_STEM_WEIGHTS, weighted_stem_onsets
+
+        weights = DEFAULT_STEM_WEIGHTS if weights is None else weights
+        unknown = sorted(set(weights) - set(DEFAULT_STEM_WEIGHTS))
+        if unknown:
+            raise StoreError(f"unknown stem(s) {unknown}; stems are {list(DEFAULT_STEM_WEIGHTS)}")
+        onsets = {
+            stem: self.stem_audio(seq_id, stem, "onset_env")
+            for stem, weight in weights.items()
+            if float(weight) != 0.0
+        }
+        if not onsets:
+            return np.zeros(self.audio_frames(seq_id), dtype=np.float32)
+        return weighted_stem_onsets(onsets, weights, normalize=normalize)
+
+    def weighted_nmfd(
+        self,
+        seq_id: str,
+        weights: dict[str, float] | None = None,
+        normalize: bool = False,
+    ) -> np.ndarray:
+        """The thesis's weighted NMFD activation curve Σ_c w_c · activation_c over the kick,
+        snare and hi-hat columns of ``audio/nmfd_drums``, (frames,) float32. ``weights`` maps
+        component → weight (default all 1); ``normalize`` divides each column by its maximum
+        over the sequence first."""
+        from dancedata.compute.nmfd import weighted_nmfd_activation
+
+        acts = self._audio_or_hint(
+            seq_id, "nmfd_drums", "run `dancedata featurize` with the nmfd family"
+        )
+        return weighted_nmfd_activation(acts, weights, normalize=normalize)
+
+    # -- cameras -------------------------------------------------------------------------------
+    def cameras(self, seq_id: str) -> CameraSet:
+        """The calibrated cameras of the sequence's AIST++ setting, in the view order of
+        ``motion/keypoints2d``, with translation in metres (see :mod:`dancedata.cameras`)."""
+        from dancedata.cameras import camera_set
+
+        setting = self.sequence(seq_id).get("camera_setting")
+        if not setting or not self._reader.has_table("cameras"):
+            raise StoreError(f"sequence {seq_id} has no cameras in this store", self.path)
+        return camera_set(self.table("cameras").to_pylist(), setting)
+
+    def projection_matrices(self, seq_id: str) -> np.ndarray:
+        """(9, 3, 4) float64 P = K [R | t] per view, for world points in metres (no lens
+        distortion: use :meth:`cameras` with ``cv2.projectPoints`` to include it)."""
+        return self.cameras(seq_id).projection
 
     # -- genres and measures -------------------------------------------------------------------
     @cached_property
@@ -205,6 +316,19 @@ class DanceStore:
             raise StoreError("this version has no measures table (run `dancedata segment`)")
         wanted = set(self.seq_ids(split, scheme))
         return [r for r in self.measures.to_pylist() if r["seq_id"] in wanted]
+
+    def measure_windows(
+        self,
+        split: str | None = None,
+        scheme: str = "crossmodal",
+        motion: str | None = "fact_motion_225",
+        audio: str | None = "fact_audio_35",
+    ) -> MeasureWindows:
+        """Fast random access to the measures of ``split`` as view windows (a data loader's
+        sampler): ``windows[i]`` gives (motion, audio) in a few microseconds."""
+        from dancedata.windows import MeasureWindows
+
+        return MeasureWindows(self, split, scheme, motion, audio)
 
     def iter_measures(
         self,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from typing import TypeVar
+from typing import Any, TypeVar
 
 T = TypeVar("T")
 _QUIET = False
@@ -23,3 +23,10 @@ def progress(
     yield from tqdm(
         items, desc=desc, total=total, unit=unit, disable=_QUIET, leave=False, dynamic_ncols=True
     )
+
+
+def progress_bar(desc: str, total: int, unit: str = "it") -> Any:
+    """A tqdm bar to advance by hand (``bar.update(n)``, ``bar.close()``); silent when quiet."""
+    from tqdm import tqdm
+
+    return tqdm(desc=desc, total=total, unit=unit, disable=_QUIET, leave=False, dynamic_ncols=True)

@@ -37,16 +37,42 @@ class UnsafePickleError(InputError):
     """The pickle names a global outside the numpy-only allow-list."""
 
 
+_RECONSTRUCT = "_reconstruct"
+
+
+def _guarded_reconstruct(original: Any) -> Any:
+    """numpy pickles every array as ``_reconstruct(ndarray, (0,), b"b")`` followed by its real
+    state; a pickle asking ``_reconstruct`` for a larger shape is trying to make us allocate
+    (terabytes, say) and is refused before anything is allocated."""
+
+    def reconstruct(subtype: Any, shape: Any, dtype: Any) -> Any:
+        dims = shape if isinstance(shape, tuple) else (shape,)
+        if not all(isinstance(d, int) and 0 <= d <= 1 for d in dims):
+            raise pickle.UnpicklingError(
+                f"refused numpy _reconstruct with shape {shape!r}: numpy itself only ever "
+                "pickles (0,) there"
+            )
+        return original(subtype, shape, dtype)
+
+    return reconstruct
+
+
 class _RestrictedUnpickler(pickle.Unpickler):
     def find_class(self, module: str, name: str) -> Any:
         if (module, name) in _ALLOWED_GLOBALS or (
             module in _NUMPY_DTYPE_CLASSES_MODULES and name.endswith("DType")
         ):
-            return super().find_class(module, name)
+            found = super().find_class(module, name)
+            return _guarded_reconstruct(found) if name == _RECONSTRUCT else found
         raise pickle.UnpicklingError(
             f"refused to load global {module}.{name}: only numpy arrays, scalars and plain "
             "containers are allowed"
         )
+
+
+def _one_line(exc: BaseException) -> str:
+    """The exception's message with its line breaks folded (pickle has multi-line messages)."""
+    return " ".join(str(exc).split())
 
 
 def loads_restricted(data: bytes, source: str | Path = "<bytes>") -> Any:
@@ -59,11 +85,17 @@ def loads_restricted(data: bytes, source: str | Path = "<bytes>") -> Any:
     try:
         return _RestrictedUnpickler(io.BytesIO(data)).load()
     except pickle.UnpicklingError as exc:
-        if "refused to load global" in str(exc):
-            raise UnsafePickleError(f"unsafe pickle: {exc}", source) from None
-        raise InputError(f"unreadable pickle: {exc}", source) from None
-    except (EOFError, ValueError, TypeError, AttributeError, IndexError, KeyError) as exc:
-        raise InputError(f"unreadable pickle ({type(exc).__name__}: {exc})", source) from None
+        if str(exc).startswith("refused "):
+            raise UnsafePickleError(f"unsafe pickle: {_one_line(exc)}", source) from None
+        raise InputError(f"unreadable pickle: {_one_line(exc)}", source) from None
+    except (MemoryError, OverflowError, RecursionError) as exc:
+        raise InputError(
+            f"unreadable pickle: it asks for more than can be built ({type(exc).__name__})", source
+        ) from None
+    except Exception as exc:  # EOFError, ValueError, LookupError (a codec name), ...: bad data
+        raise InputError(
+            f"unreadable pickle ({type(exc).__name__}: {_one_line(exc)})", source
+        ) from None
 
 
 def load_restricted(path: str | Path) -> Any:

@@ -7,11 +7,26 @@ Tests that use them are marked ``real_data``; they skip only when the folder is 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 _DEFAULT_REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def feature_cache_dir(tmp_path_factory) -> Iterator[Path]:
+    """Every test (and every CLI subprocess it starts) uses one fresh feature cache for the
+    session, never the user's ~/.cache/dancedata/features."""
+    root = tmp_path_factory.mktemp("feature-cache")
+    saved = os.environ.get("DANCEDATA_CACHE")
+    os.environ["DANCEDATA_CACHE"] = str(root)
+    yield root
+    if saved is None:
+        os.environ.pop("DANCEDATA_CACHE", None)
+    else:
+        os.environ["DANCEDATA_CACHE"] = saved
 
 
 def real_data_root() -> Path:

@@ -216,7 +216,7 @@ def test_same_seed_gives_identical_bytes_and_arrays(tmp_path, built):
     a, b = dancedata.open_store(built["store"], "v2"), dancedata.open_store(store2)
     assert a.array_names() == b.array_names()
     for name in a.array_names():
-        assert np.array_equal(a.zarr(name)[...], b.zarr(name)[...]), name
+        assert np.array_equal(a.zarr(name)[...], b.zarr(name)[...], equal_nan=True), name
 
 
 def test_different_seed_gives_different_data(tmp_path):

@@ -40,18 +40,37 @@ class AudioFeatureConfig:
         return {**asdict(self), "sr": self.sr}
 
 
-def onset_envelope(y: np.ndarray, cfg: AudioFeatureConfig) -> np.ndarray:
-    """Spectral-flux onset strength, (A,) float32."""
+def log_mel(y: np.ndarray, cfg: AudioFeatureConfig) -> np.ndarray:
+    """The log-power (dB) mel spectrogram both onset_strength and mfcc compute from ``y`` with
+    librosa's defaults (128 mels, power 2, ref 1.0), (128, A) float32: computed once, it gives
+    both the very same numbers for one STFT instead of two."""
     import librosa
 
+    mel = librosa.feature.melspectrogram(y=y, sr=cfg.sr, n_fft=cfg.n_fft, hop_length=cfg.hop_length)
+    return librosa.power_to_db(mel)
+
+
+def onset_envelope(
+    y: np.ndarray, cfg: AudioFeatureConfig, s_db: np.ndarray | None = None
+) -> np.ndarray:
+    """Spectral-flux onset strength, (A,) float32 (from ``s_db`` = :func:`log_mel` if given)."""
+    import librosa
+
+    if s_db is not None:
+        env = librosa.onset.onset_strength(
+            S=s_db, sr=cfg.sr, hop_length=cfg.hop_length, n_fft=cfg.n_fft
+        )
+        return env.astype(np.float32)
     env = librosa.onset.onset_strength(y=y, sr=cfg.sr, hop_length=cfg.hop_length, n_fft=cfg.n_fft)
     return env.astype(np.float32)
 
 
-def mfcc(y: np.ndarray, cfg: AudioFeatureConfig) -> np.ndarray:
-    """MFCC, (A, n_mfcc) float32."""
+def mfcc(y: np.ndarray, cfg: AudioFeatureConfig, s_db: np.ndarray | None = None) -> np.ndarray:
+    """MFCC, (A, n_mfcc) float32 (from ``s_db`` = :func:`log_mel` if given)."""
     import librosa
 
+    if s_db is not None:
+        return librosa.feature.mfcc(S=s_db, n_mfcc=cfg.n_mfcc).T.astype(np.float32)
     coeffs = librosa.feature.mfcc(
         y=y, sr=cfg.sr, n_mfcc=cfg.n_mfcc, hop_length=cfg.hop_length, n_fft=cfg.n_fft
     )
@@ -106,10 +125,11 @@ def fact_features(
     y: np.ndarray, bpm: float | None, cfg: AudioFeatureConfig
 ) -> dict[str, np.ndarray]:
     """All five FACT features of one track, trimmed to a common frame count."""
-    env = onset_envelope(y, cfg)
+    s_db = log_mel(y, cfg)  # shared by onset_env and mfcc: one STFT, the same numbers
+    env = onset_envelope(y, cfg, s_db)
     features = {
         "onset_env": env,
-        "mfcc": mfcc(y, cfg),
+        "mfcc": mfcc(y, cfg, s_db),
         "chroma_cens": chroma_cens(y, cfg),
         "onset_peaks": onset_peaks(env, cfg),
         "beats": beats(env, bpm, cfg),

@@ -12,14 +12,26 @@ import math
 
 import numpy as np
 
+# Beyond this many frames float64 can no longer place measure boundaries to the frame.
+_MAX_PHASE = 1e12
+
 
 def frames_per_measure(bpm: float, fps: float, beats_per_measure: int = 4) -> float:
     """Frames in one measure: 60 / bpm × beats_per_measure × fps (fractional)."""
-    if not (bpm > 0 and fps > 0 and beats_per_measure > 0):
+    if not all(math.isfinite(v) and v > 0 for v in (bpm, fps, beats_per_measure)):
         raise ValueError(
-            f"bpm, fps and beats_per_measure must be positive ({bpm}, {fps}, {beats_per_measure})"
+            "bpm, fps and beats_per_measure must be positive finite numbers "
+            f"({bpm}, {fps}, {beats_per_measure})"
         )
-    return 60.0 / bpm * beats_per_measure * fps
+    fpm = 60.0 / bpm * beats_per_measure * fps
+    if not math.isfinite(fpm):
+        raise ValueError(f"{bpm} BPM at {fps} fps gives no finite measure length")
+    if fpm < 1.0:
+        raise ValueError(
+            f"a measure of {beats_per_measure} beats at {bpm} BPM lasts {fpm:.3g} frames at "
+            f"{fps} fps: less than one frame (wrong tempo or fps?)"
+        )
+    return fpm
 
 
 def measure_bounds(
@@ -27,11 +39,15 @@ def measure_bounds(
 ) -> np.ndarray:
     """(M, 2) int64 half-open [start, stop) frame bounds of the complete measures."""
     fpm = frames_per_measure(bpm, fps, beats_per_measure)
-    if n_frames <= 0:
+    if not (math.isfinite(phase) and abs(phase) <= _MAX_PHASE):
+        raise ValueError(f"phase must be a number of frames within ±{_MAX_PHASE:g}, got {phase}")
+    if n_frames <= 0 or fpm > n_frames + 1:  # no room for one complete measure
         return np.zeros((0, 2), dtype=np.int64)
-    # Upper bound on the count, then keep those whose stop fits and whose start is >= 0.
+    # Candidate measures k_min..k_max (a margin of one each side), then keep those whose start
+    # is >= 0 and whose stop fits: the work is bounded by n_frames / fpm whatever the phase.
+    k_min = max(0, math.floor((-phase - 0.5) / fpm) - 1)
     k_max = int(math.ceil((n_frames - phase) / fpm)) + 1
-    k = np.arange(max(k_max, 0), dtype=np.float64)
+    k = np.arange(k_min, max(k_max, k_min), dtype=np.float64)
     starts = np.floor(phase + k * fpm + 0.5).astype(np.int64)
     stops = np.floor(phase + (k + 1) * fpm + 0.5).astype(np.int64)
     keep = (starts >= 0) & (stops <= n_frames) & (stops > starts)

@@ -7,13 +7,12 @@ is handled per sequence by the caller, which knows where sequences start and sto
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from dancedata.compute.rotations import (
     ROT6D_LAYOUT,
-    axis_angle_to_rotmat,
     quat_sign_continuous,
     rotmat_to_euler,
-    rotmat_to_quat,
     rotmat_to_rot6d,
 )
 
@@ -64,15 +63,27 @@ def representations_from_axis_angle(
     Quaternions come out with w ≥ 0 per frame; make them continuous with
     :func:`continue_quat_signs`.
     """
-    rotmat = axis_angle_to_rotmat(axis_angle)
+    # One scipy Rotation serves every output: building it from a matrix again (from_matrix
+    # re-orthogonalises) costs about three times the rest together.
+    values = np.asarray(axis_angle, dtype=np.float64)
+    lead = values.shape[:-1]
+    rotation = Rotation.from_rotvec(values.reshape(-1, 3))
+    per_joint_orders = not isinstance(euler_order, str)
+    rotmat = None
+    if {"rotmat", "rot6d"} & set(names) or ("euler" in names and per_joint_orders):
+        rotmat = rotation.as_matrix().reshape(lead + (3, 3))
     out: dict[str, np.ndarray] = {}
     for name in names:
         if name == "rotmat":
             out[name] = rotmat
         elif name == "euler":
-            out[name] = euler_per_joint(rotmat, euler_order)
+            out[name] = (
+                euler_per_joint(rotmat, euler_order)
+                if per_joint_orders
+                else rotation.as_euler(euler_order).reshape(lead + (3,))
+            )
         elif name == "quat":
-            out[name] = rotmat_to_quat(rotmat)
+            out[name] = rotation.as_quat(canonical=True)[:, [3, 0, 1, 2]].reshape(lead + (4,))
         elif name == "rot6d":
             out[name] = rotmat_to_rot6d(rotmat)
         else:

@@ -44,10 +44,13 @@ def stem_features(
     signal = np.asarray(y, dtype=np.float32)
     if signal.ndim != 1 or signal.size == 0:
         raise InputError(f"a stem must be a non-empty mono signal, got shape {signal.shape}")
-    env = librosa.onset.onset_strength(y=signal, sr=sr, hop_length=hop_length, n_fft=n_fft)
-    mfcc = librosa.feature.mfcc(
-        y=signal, sr=sr, n_mfcc=n_mfcc, hop_length=hop_length, n_fft=n_fft
-    ).T
+    # onset_strength(y=...) and mfcc(y=...) each compute this same log-power mel spectrogram
+    # (128 bands up to sr / 2); computed once and handed to both, the numbers are unchanged.
+    mel_db = librosa.power_to_db(
+        librosa.feature.melspectrogram(y=signal, sr=sr, n_fft=n_fft, hop_length=hop_length)
+    )
+    env = librosa.onset.onset_strength(S=mel_db, sr=sr, hop_length=hop_length, n_fft=n_fft)
+    mfcc = librosa.feature.mfcc(S=mel_db, sr=sr, n_mfcc=n_mfcc).T
     peaks = np.zeros(env.shape[0], dtype=np.uint8)
     if np.any(env > 0):
         idx = librosa.onset.onset_detect(onset_envelope=env, sr=sr, hop_length=hop_length)

@@ -125,9 +125,9 @@ def find_weights(model: str = "umxhq", weights_dir: str | Path | None = None) ->
             found[stem] = hit
     if missing:
         where = (
-            f"{Path(weights_dir).expanduser() / model}/ (weights_dir) or {hub}/"
+            f"{Path(weights_dir).expanduser() / model}/ (--stems-weights) or {hub}/"
             if weights_dir is not None
-            else f"a folder passed as weights_dir (as <weights_dir>/{model}/) or {hub}/"
+            else f"a folder given as --stems-weights DIR (as DIR/{model}/) or {hub}/"
         )
         raise InputError(
             f"OpenUnmix {model!r} weights missing: {', '.join(missing)}. Nothing is downloaded "
@@ -244,6 +244,11 @@ def run_chunked(
 
     Each chunk runs alone through the network; overlapping parts are blended with
     :func:`crossfade_weights` and normalised by the summed weights, so the blend is exact.
+
+    OpenUnmix's EM step inverts 2 × 2 spatial covariances regularised by sqrt(1e-10); with
+    duplicated-mono input and channel-symmetric estimates they are singular, and in float32 the
+    inverse can come out inf/NaN. A chunk whose estimate is not finite is run again without the
+    EM step (plain ratio masks, ``niter`` 0), with a warning, rather than failing the track.
     """
     torch = _import_torch()
     n_samples = audio.shape[-1]
@@ -254,10 +259,30 @@ def run_chunked(
         for i, (start, stop) in enumerate(bounds):
             piece = torch.as_tensor(audio[None, :, start:stop], dtype=torch.float32, device=device)
             estimate = separator(piece)[0].detach().cpu().numpy().astype(np.float64)
+            if not np.all(np.isfinite(estimate)) and separator.niter > 0:
+                estimate = _without_em(separator, piece)
             weights = crossfade_weights(stop - start, overlap, i == 0, i == len(bounds) - 1)
             out[..., start:stop] += estimate * weights
             total[start:stop] += weights
     return out / total
+
+
+def _without_em(separator: Any, piece: Any) -> np.ndarray:
+    """The separator's estimate of ``piece`` with ``niter`` 0 (see :func:`run_chunked`)."""
+    import warnings
+
+    niter = separator.niter
+    warnings.warn(
+        f"OpenUnmix EM step gave non-finite values (singular spatial covariance); this "
+        f"{piece.shape[-1] / MODEL_SAMPLE_RATE:.1f} s chunk uses the ratio masks (niter 0)",
+        RuntimeWarning,
+        stacklevel=3,
+    )
+    separator.niter = 0
+    try:
+        return separator(piece)[0].detach().cpu().numpy().astype(np.float64)
+    finally:
+        separator.niter = niter
 
 
 def separate(

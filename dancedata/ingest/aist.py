@@ -1,12 +1,16 @@
 """``dancedata ingest aist``: AIST++ annotations and music into a new store version.
 
-Streams one sequence at a time into frame-concatenated arrays (memory bounded by one sequence and
-one chunk per array), then writes the sequences, music and splits tables. Music is only
-described here (sample rate, length, feature frame range); featurize decodes it.
+Streams sequences (motion, keypoints3d, keypoints2d) into frame-concatenated arrays, so memory
+is bounded by one read batch (:mod:`dancedata.exec.reads`) and one chunk per array whatever the
+dataset size; then writes the sequences, music, cameras and splits tables (a few hundred bytes
+per sequence).
+Music is only described here (sample rate, length, feature frame range); featurize decodes it.
 """
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -14,10 +18,31 @@ from typing import Any
 import numpy as np
 
 from dancedata._version import __version__
-from dancedata.aist_names import SequenceName, music_bpm, music_genre, parse_sequence_name
+from dancedata.aist_names import (
+    GENRES,
+    SITUATIONS,
+    SequenceName,
+    music_bpm,
+    music_genre,
+    parse_sequence_name,
+)
 from dancedata.errors import DancedataError, InputError
+from dancedata.exec.executors import make_executor
+from dancedata.exec.reads import ResumableReads
+from dancedata.ingest.aist_annotations import (
+    ANNOTATION_KINDS,
+    AnnotationWriters,
+    SequenceAnnotations,
+    read_annotations,
+)
+from dancedata.ingest.aist_camera_inputs import (
+    CameraInputs,
+    cameras_table_rows,
+    find_camera_inputs,
+)
+from dancedata.ingest.aist_splits import split_rows
 from dancedata.ingest.result import CommandResult
-from dancedata.io.aist import find_ignore_list, find_split_files, read_motion, read_name_list
+from dancedata.io.aist import AistMotion, find_ignore_list, find_split_files, read_motion
 from dancedata.io.audio import audio_info, feature_frames, find_music, resampled_length
 from dancedata.progress import progress
 from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS
@@ -43,8 +68,15 @@ class AistIngestOptions:
     genres: list[str] | None = None
     exclude_genres: list[str] | None = None
     situations: list[str] | None = None
+    # Annotation kinds to store (keypoints3d, keypoints2d, cameras); None: every kind on disk.
+    annotations: list[str] | None = None
     on_error: str = "fail"  # or "skip"
     wait_for_lock: bool = False
+    # Processes reading pickles (not fingerprinted: the bytes do not depend on it).
+    workers: int = 1
+
+    def wants(self, kind: str) -> bool:
+        return self.annotations is None or kind in self.annotations
 
     def config(self) -> dict[str, Any]:
         return {
@@ -55,6 +87,7 @@ class AistIngestOptions:
             "genres": sorted(self.genres) if self.genres else None,
             "exclude_genres": sorted(self.exclude_genres) if self.exclude_genres else None,
             "situations": sorted(self.situations) if self.situations else None,
+            "annotations": sorted(self.annotations) if self.annotations is not None else None,
             "on_error": self.on_error,
         }
 
@@ -66,6 +99,9 @@ class _Inventory:
     music_paths: dict[str, Path | None]
     split_files: dict[tuple[str, str], Path]
     ignore_file: Path | None
+    keypoints3d_paths: dict[str, Path] = field(default_factory=dict)
+    keypoints2d_paths: dict[str, Path] = field(default_factory=dict)
+    cameras: CameraInputs = field(default_factory=CameraInputs)
     skipped: list[dict[str, str]] = field(default_factory=list)
 
 
@@ -78,7 +114,21 @@ def _music_dir(raw: Path, options: AistIngestOptions) -> Path:
     return raw / "wav"
 
 
+def _check_selection(options: AistIngestOptions) -> None:
+    """Unknown genre, situation or annotation codes are an error, not an empty selection."""
+    for option, given, known in (
+        ("--genres", options.genres, GENRES),
+        ("--exclude-genres", options.exclude_genres, GENRES),
+        ("--situations", options.situations, SITUATIONS),
+        ("--annotations", options.annotations, ANNOTATION_KINDS),
+    ):
+        unknown = sorted(set(given or ()) - set(known))
+        if unknown:
+            raise InputError(f"{option}: unknown {unknown}; known: {', '.join(known)}")
+
+
 def _inventory(raw: Path, options: AistIngestOptions) -> _Inventory:
+    _check_selection(options)
     motions_dir = raw / "motions"
     if not motions_dir.is_dir():
         raise InputError("no motions/ folder: not an AIST++ annotation root", raw)
@@ -114,36 +164,76 @@ def _inventory(raw: Path, options: AistIngestOptions) -> _Inventory:
                 music_dir,
             )
         music_paths[music_id] = found
+    seq_ids = [n.seq_id for n in names]
+    cameras = (
+        find_camera_inputs(raw, seq_ids, options.on_error)
+        if options.wants("cameras")
+        else CameraInputs()
+    )
     return _Inventory(
         names=names,
         motion_paths=paths,
         music_paths=music_paths,
         split_files=find_split_files(raw),
         ignore_file=find_ignore_list(raw),
-        skipped=skipped,
+        keypoints3d_paths=(
+            _annotation_files(raw / "keypoints3d", seq_ids) if options.wants("keypoints3d") else {}
+        ),
+        keypoints2d_paths=(
+            _annotation_files(raw / "keypoints2d", seq_ids) if options.wants("keypoints2d") else {}
+        ),
+        cameras=cameras,
+        skipped=skipped + cameras.skipped,
     )
+
+
+def _annotation_files(folder: Path, seq_ids: list[str]) -> dict[str, Path]:
+    """``{seq_id: folder/<seq_id>.pkl}`` for the pickles present."""
+    if not folder.is_dir():
+        return {}
+    present = {p.stem: p for p in folder.glob("*.pkl")}
+    return {seq_id: present[seq_id] for seq_id in seq_ids if seq_id in present}
 
 
 def _inputs(inventory: _Inventory) -> list[dict[str, Any]]:
     files = list(inventory.motion_paths.values())
+    files += list(inventory.keypoints3d_paths.values())
+    files += list(inventory.keypoints2d_paths.values())
+    files += inventory.cameras.files()
     files += [p for p in inventory.music_paths.values() if p is not None]
     files += list(inventory.split_files.values())
     if inventory.ignore_file is not None:
         files.append(inventory.ignore_file)
-    return [describe_input(p) for p in progress(files, "checksums", unit="file")]
+    # hashlib releases the GIL on large blocks: threads hash files side by side (same order).
+    with ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
+        described = pool.map(describe_input, files)
+        return list(progress(described, "checksums", total=len(files), unit="file"))
 
 
-def _music_rows(inventory: _Inventory) -> tuple[list[dict[str, Any]], dict[str, int]]:
-    """Music table rows (one per music id with a file) and each track's feature frame count."""
+def _music_rows(
+    inventory: _Inventory, on_error: str
+) -> tuple[list[dict[str, Any]], dict[str, int], dict[str, InputError]]:
+    """Music table rows (one per music id with a readable file), each track's feature frame
+    count, and — with ``on_error="skip"`` — the unreadable tracks' errors by music id (their
+    sequences are skipped too); otherwise an unreadable track raises."""
     rows: list[dict[str, Any]] = []
     frames: dict[str, int] = {}
+    unreadable: dict[str, InputError] = {}
     start = 0
-    for music_id, path in inventory.music_paths.items():
+    for music_id, path in progress(
+        inventory.music_paths.items(), "read music headers", unit="file"
+    ):
         if path is None:
             continue
-        info = audio_info(path)
-        if info.n_samples == 0:
-            raise InputError("music file holds no samples", path)
+        try:
+            info = audio_info(path)
+            if info.n_samples == 0:
+                raise InputError("music file holds no samples", path)
+        except InputError as exc:
+            if on_error != "skip":
+                raise
+            unreadable[music_id] = exc
+            continue
         n_frames = feature_frames(resampled_length(info.n_samples, info.sr, AUDIO_SR), AUDIO_HOP)
         frames[music_id] = n_frames
         rows.append(
@@ -162,37 +252,97 @@ def _music_rows(inventory: _Inventory) -> tuple[list[dict[str, Any]], dict[str, 
             }
         )
         start += n_frames
-    return rows, frames
+    return rows, frames, unreadable
 
 
-def _split_rows(
-    inventory: _Inventory, present: set[str]
-) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    """Rows of the splits table for the sequences in the store, and listed/usable counts."""
-    ignored = set(read_name_list(inventory.ignore_file)) if inventory.ignore_file else set()
-    rows: list[dict[str, Any]] = []
-    counts: dict[str, Any] = {"ignore_list": len(ignored), "schemes": {}}
-    for (scheme, split), path in sorted(inventory.split_files.items()):
-        listed = read_name_list(path)
-        listed_ignored = [n for n in listed if n in ignored]
-        in_store = [n for n in listed if n in present]
-        for name in in_store:
-            rows.append(
-                {
-                    "scheme": scheme,
-                    "split": "ignored" if name in ignored else split,
-                    "listed_split": split,
-                    "seq_id": name,
-                }
-            )
-        counts["schemes"].setdefault(scheme, {})[split] = {
-            "listed": len(listed),
-            "ignored": len(listed_ignored),
-            "usable": len(listed) - len(listed_ignored),
-            "in_store": len(in_store),
-            "missing_from_store": len(listed) - len(in_store),
-        }
-    return rows, counts
+def _check_music_length(music_id: str, music_frames: int | None, n_frames: int, path: Path) -> None:
+    """Music may end at most MAX_MUSIC_SHORTFALL_FRAMES feature frames before the motion."""
+    if music_frames is not None and music_frames < n_frames - MAX_MUSIC_SHORTFALL_FRAMES:
+        raise InputError(
+            f"music {music_id} gives {music_frames} feature frames "
+            f"({music_frames / AIST_FPS:.2f} s) but the motion has "
+            f"{n_frames} frames ({n_frames / AIST_FPS:.2f} s)",
+            path,
+        )
+
+
+def _sequence_row(
+    name: SequenceName,
+    n_frames: int,
+    frame_start: int,
+    music_frames: int | None,
+    path: str,
+    checksums: dict[str, str],
+) -> dict[str, Any]:
+    """The contract columns of one sequence, and how its music covers it."""
+    return {
+        "seq_id": name.seq_id,
+        "source": "aistpp",
+        "genre": name.genre,
+        "situation": name.situation,
+        "camera": name.camera,
+        "dancer": name.dancer,
+        "music_id": name.music_id,
+        "choreo": name.choreo,
+        "bpm": music_bpm(name.music_id),
+        "fps": AIST_FPS,
+        "n_frames": n_frames,
+        "frame_start": frame_start,
+        "frame_stop": frame_start + n_frames,
+        "audio_offset": 0,
+        "audio_frames": 0 if music_frames is None else min(n_frames, music_frames),
+        "audio_truncated_frames": 0 if music_frames is None else max(0, music_frames - n_frames),
+        "music_missing": music_frames is None,
+        "path": path,
+        "sha256": checksums[path],
+    }
+
+
+def _used_music(music_rows: list[dict[str, Any]], used: set[str]) -> list[dict[str, Any]]:
+    """Music rows of the tracks the stored sequences use, frame ranges re-packed from 0."""
+    table = [dict(r) for r in music_rows if r["music_id"] in used]
+    start = 0
+    for row in table:
+        n = row["frame_stop"] - row["frame_start"]
+        row["frame_start"], row["frame_stop"] = start, start + n
+        start += n
+    return table
+
+
+def _annotations_missing(rows: list[dict[str, Any]]) -> dict[str, int]:
+    """Per annotation kind (and music), how many stored sequences lack it."""
+    return {
+        "keypoints3d": sum(not r["has_keypoints3d"] for r in rows),
+        "keypoints2d": sum(not r["has_keypoints2d"] for r in rows),
+        "cameras": sum(r["camera_setting"] is None for r in rows),
+        "music": sum(bool(r["music_missing"]) for r in rows),
+    }
+
+
+def _sequence_files(inventory: _Inventory, seq_id: str) -> tuple[str, str | None, str | None]:
+    """Motion, keypoints3d and keypoints2d files of one sequence (None where absent)."""
+    kp3d = inventory.keypoints3d_paths.get(seq_id)
+    kp2d = inventory.keypoints2d_paths.get(seq_id)
+    return (
+        str(inventory.motion_paths[seq_id]),
+        None if kp3d is None else str(kp3d),
+        None if kp2d is None else str(kp2d),
+    )
+
+
+def _read_sequence(
+    files: tuple[str, str | None, str | None],
+) -> tuple[AistMotion, SequenceAnnotations]:
+    """One resumable read unit item: a sequence's motion and keypoint pickles, checked."""
+    motion, kp3d, kp2d = files
+    seq = read_motion(motion)
+    keypoints = read_annotations(
+        None if kp3d is None else Path(kp3d),
+        None if kp2d is None else Path(kp2d),
+        seq.n_frames,
+        AIST_FPS,
+    )
+    return seq, keypoints
 
 
 def ingest_aist(store: str | Path, raw: str | Path, options: AistIngestOptions) -> CommandResult:
@@ -207,26 +357,35 @@ def ingest_aist(store: str | Path, raw: str | Path, options: AistIngestOptions) 
     existing = find_version_with_fingerprint(store, fp)
     if existing is not None:
         return CommandResult(version=existing, created=False)
-    music_rows, music_frames = _music_rows(inventory)
+    music_rows, music_frames, unreadable_music = _music_rows(inventory, options.on_error)
     checksums = {i["path"]: i["sha256"] for i in inputs}
     for row in music_rows:
         row["sha256"] = checksums[row["path"]]
 
     layout = StoreLayout(store)
     parent = layout.latest() if layout.exists() else None
-    with VersionWriter(
-        store,
-        command="ingest aist",
-        config=config,
-        fingerprint=fp,
-        inputs=inputs,
-        parent=parent,
-        carry_over=False,
-        wait_for_lock=options.wait_for_lock,
-        stage="ingest",
-    ) as version:
+    with (
+        make_executor(options.workers) as executor,
+        VersionWriter(
+            store,
+            command="ingest aist",
+            config=config,
+            fingerprint=fp,
+            inputs=inputs,
+            parent=parent,
+            carry_over=False,
+            wait_for_lock=options.wait_for_lock,
+            stage="ingest",
+            resumable=True,
+        ) as version,
+    ):
+        # resume (issue 8.1): keep the reads a killed run finished, rebuild every output.
+        version.reset_outputs()
+        version.mark_prepared()
         for item in inventory.skipped:
             version.skip(item["path"], item["error"])
+        for error in unreadable_music.values():
+            version.skip(error.path or "", error.problem)
         root = version.zarr_group()
         motion = root.require_group("motion")
         root.require_group("audio")
@@ -245,82 +404,73 @@ def ingest_aist(store: str | Path, raw: str | Path, options: AistIngestOptions) 
         aa_writer = FrameArrayWriter(
             motion, "axis_angle", (24, 3), np.float32, attrs={"units": "rad"}
         )
+        annotations = AnnotationWriters(
+            motion,
+            keypoints3d=bool(inventory.keypoints3d_paths),
+            keypoints2d=bool(inventory.keypoints2d_paths),
+        )
         rows: list[dict[str, Any]] = []
         frame = 0
-        for name in progress(inventory.names, "ingest motions", unit="seq"):
+        reads = ResumableReads(
+            version.build_area(),
+            "sequences",
+            [_sequence_files(inventory, name.seq_id) for name in inventory.names],
+            _read_sequence,
+            executor=executor,
+            desc="read sequences",
+        )
+        # reads first: it runs the read units (their own bar) before yielding anything
+        for loaded, name in zip(
+            reads, progress(inventory.names, "ingest sequences", unit="seq"), strict=True
+        ):
             path = inventory.motion_paths[name.seq_id]
             try:
-                seq = read_motion(path)
+                if name.music_id in unreadable_music:
+                    bad = unreadable_music[name.music_id]
+                    raise InputError(f"its music {name.music_id} is unreadable ({bad.path})", path)
+                seq, keypoints = loaded.get()
                 music_available = music_frames.get(name.music_id)
-                if music_available is not None and (
-                    music_available < seq.n_frames - MAX_MUSIC_SHORTFALL_FRAMES
-                ):
-                    raise InputError(
-                        f"music {name.music_id} gives {music_available} feature frames "
-                        f"({music_available / AIST_FPS:.2f} s) but the motion has "
-                        f"{seq.n_frames} frames ({seq.n_frames / AIST_FPS:.2f} s)",
-                        path,
-                    )
+                _check_music_length(name.music_id, music_available, seq.n_frames, path)
             except DancedataError as exc:
                 if options.on_error != "skip":
                     raise
-                version.skip(path, exc.problem)
+                version.skip(exc.path or path, exc.problem)
                 continue
             trans_writer.append(seq.trans_m)
             aa_writer.append(seq.axis_angle)
-            audio_frames = 0 if music_available is None else min(seq.n_frames, music_available)
+            annotation_columns = annotations.append(keypoints, seq.n_frames)
             rows.append(
-                {
-                    "seq_id": name.seq_id,
-                    "source": "aistpp",
-                    "genre": name.genre,
-                    "situation": name.situation,
-                    "camera": name.camera,
-                    "dancer": name.dancer,
-                    "music_id": name.music_id,
-                    "choreo": name.choreo,
-                    "bpm": music_bpm(name.music_id),
-                    "fps": AIST_FPS,
-                    "n_frames": seq.n_frames,
-                    "frame_start": frame,
-                    "frame_stop": frame + seq.n_frames,
-                    "audio_offset": 0,
-                    "audio_frames": audio_frames,
-                    "audio_truncated_frames": (
-                        0 if music_available is None else max(0, music_available - seq.n_frames)
-                    ),
-                    "music_missing": music_available is None,
-                    "smpl_scaling": seq.scaling,
-                    "smpl_loss": seq.loss,
-                    "path": str(path),
-                    "sha256": checksums[str(path)],
-                }
+                _sequence_row(name, seq.n_frames, frame, music_available, str(path), checksums)
+                | {"smpl_scaling": seq.scaling, "smpl_loss": seq.loss}
+                | {"camera_setting": inventory.cameras.setting_of.get(name.seq_id)}
+                | annotation_columns
             )
             frame += seq.n_frames
         trans_writer.close()
         aa_writer.close()
+        annotations.close()
         if not rows:
             raise InputError("every motion was skipped; nothing to ingest", raw)
         present = {r["seq_id"] for r in rows}
-        split_rows, split_counts = _split_rows(inventory, present)
-        used_music = {r["music_id"] for r in rows}
-        music_table = [r for r in music_rows if r["music_id"] in used_music]
-        # Re-pack music frame ranges over the tracks actually used.
-        start = 0
-        for row in music_table:
-            n = row["frame_stop"] - row["frame_start"]
-            row["frame_start"], row["frame_stop"] = start, start + n
-            start += n
+        splits, split_counts = split_rows(inventory.split_files, inventory.ignore_file, present)
+        music_table = _used_music(music_rows, {r["music_id"] for r in rows})
+        used_settings = {r["camera_setting"] for r in rows if r["camera_setting"]}
+        camera_table = cameras_table_rows(inventory.cameras, used_settings, checksums)
         version.write_table("sequences", build_table("sequences", rows))
         version.write_table("music", build_table("music", music_table))
-        version.write_table("splits", build_table("splits", split_rows))
+        version.write_table("splits", build_table("splits", splits))
+        if camera_table:
+            version.write_table("cameras", build_table("cameras", camera_table))
         counts = {
             "sequences": len(rows),
             "frames": frame,
             "music": len(music_table),
             "music_missing": sum(r["music_missing"] for r in rows),
+            "camera_settings": len(used_settings),
+            "annotations_missing": _annotations_missing(rows),
             "skipped": len(version.skipped),
             "splits": split_counts,
+            **reads.counts(),
         }
         name = version.commit(counts=counts)
         return CommandResult(version=name, created=True, counts=counts, skipped=version.skipped)

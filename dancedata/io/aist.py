@@ -39,7 +39,18 @@ def _require_dict(value: object, path: Path) -> dict:
     return value
 
 
-def _array(data: dict, key: str, path: Path, tail: tuple[int, ...]) -> np.ndarray:
+def checked_array(
+    data: dict,
+    key: str,
+    path: Path,
+    tail: tuple[int, ...],
+    *,
+    lead: int | None = None,
+    allow_nan: bool = False,
+) -> np.ndarray:
+    """``data[key]`` as a numeric array of shape (N, *tail) — or (lead, N, *tail) when ``lead``
+    is given — with finite values (NaN allowed with ``allow_nan``; Inf never). One InputError
+    line naming ``path`` otherwise."""
     if key not in data:
         raise InputError(f"missing key {key!r} (keys: {sorted(map(str, data))})", path)
     value = data[key]
@@ -47,12 +58,21 @@ def _array(data: dict, key: str, path: Path, tail: tuple[int, ...]) -> np.ndarra
         raise InputError(f"{key} is {type(value).__name__}, expected a numpy array", path)
     if value.dtype.kind not in "fiu":
         raise InputError(f"{key} has dtype {value.dtype}, expected numbers", path)
-    if value.ndim != 1 + len(tail) or value.shape[1:] != tail:
-        want = "(N, " + ", ".join(map(str, tail)) + ")"
+    head = () if lead is None else (lead,)
+    n_head = len(head)
+    if (
+        value.ndim != n_head + 1 + len(tail)
+        or value.shape[:n_head] != head
+        or value.shape[n_head + 1 :] != tail
+    ):
+        want = "(" + ", ".join([*map(str, head), "N", *map(str, tail)]) + ")"
         raise InputError(f"{key} has shape {value.shape}, expected {want}", path)
-    if not np.all(np.isfinite(value)):
-        bad = int(np.argwhere(~np.isfinite(value.reshape(value.shape[0], -1)))[0][0])
-        raise InputError(f"{key} holds NaN or Inf (first at frame {bad})", path)
+    bad = np.isinf(value) if allow_nan else ~np.isfinite(value)
+    if value.dtype.kind == "f" and bad.any():
+        frames = np.moveaxis(bad, n_head, 0).reshape(value.shape[n_head], -1)
+        first = int(np.argwhere(frames)[0][0])
+        what = "Inf" if allow_nan else "NaN or Inf"
+        raise InputError(f"{key} holds {what} (first at frame {first})", path)
     return value
 
 
@@ -63,8 +83,8 @@ def read_motion(path: str | Path) -> AistMotion:
     """
     path = Path(path)
     data = _require_dict(load_restricted(path), path)
-    poses = _array(data, "smpl_poses", path, (72,))
-    trans = _array(data, "smpl_trans", path, (3,))
+    poses = checked_array(data, "smpl_poses", path, (72,))
+    trans = checked_array(data, "smpl_trans", path, (3,))
     if "smpl_scaling" not in data:
         raise InputError("missing key 'smpl_scaling'", path)
     scaling = np.asarray(data["smpl_scaling"], dtype=np.float64).reshape(-1)

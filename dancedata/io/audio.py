@@ -49,12 +49,22 @@ def audio_info(path: str | Path) -> AudioInfo:
 
 
 def _decode_with_librosa(path: Path, sr: int | None, mono: bool) -> tuple[np.ndarray, int]:
+    import warnings
+
     import librosa
 
     try:
-        y, out_sr = librosa.load(str(path), sr=sr, mono=mono)
+        # librosa warns (several lines on stderr) when soundfile fails and audioread takes over;
+        # the outcome is reported below as one line instead.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            y, out_sr = librosa.load(str(path), sr=sr, mono=mono)
     except Exception as exc:  # audioread/soundfile raise many unrelated types
-        raise InputError(f"cannot decode audio ({type(exc).__name__}: {exc})", path) from None
+        detail = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+        raise InputError(
+            f"cannot decode audio: not a readable wav/flac/ogg/mp3 file, or truncated ({detail})",
+            path,
+        ) from None
     if y.size == 0:
         raise InputError("audio file holds no samples", path)
     return y, int(out_sr)

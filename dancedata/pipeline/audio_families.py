@@ -1,57 +1,70 @@
 """Audio feature families: each computes a set of ``audio/...`` arrays from one music track.
 
-featurize decodes every track once at ``cfg.sr`` and hands the samples to every requested
-family, so a song's features are computed once whatever number of sequences share it. A family
-declares the arrays it writes (path, row shape, dtype, attrs) and computes them; all arrays run
-at the motion frame rate (cfg.fps frames per second) and are trimmed to a common length per track.
+featurize runs every requested family on each track once (never once per sequence), through a
+:class:`TrackAudio` that decodes the track at ``cfg.sr`` on first use and shares intermediate
+results between families (the stems feed both ``stems`` and ``nmfd``). A family declares the
+arrays it writes (path, row shape, dtype, attrs) and computes them; all arrays run at the motion
+frame rate (cfg.fps frames per second) and are trimmed to a common length per track. Each
+family's results per track are kept in the feature cache (:mod:`dancedata.feature_cache`).
+
+Families (:data:`FAMILIES`); the default set is :data:`DEFAULT_FAMILIES`:
+
+==============  ==========================================================================
+``fact``        onset_env, mfcc, chroma_cens, onset_peaks, beats (the FACT 35-d parts)
+``stems``       stems/<stem>/{onset_env, mfcc, onset_peaks} for drums, bass, vocals, other
+``nmfd``        nmfd_drums (A, 3): kick, snare, hi-hat activations of the drums stem
+``mel96``       mel96 (A, 96): ChoreoGraph's mel spectrogram (on request)
+``stft_frames`` stft_frames (A, 1025, k): per-motion-frame STFT of the genre study (on request)
+``tempogram``   tempogram (A, 384) (on request)
+==============  ==========================================================================
 
 To add a family, subclass :class:`AudioFamily` and add an instance to :data:`FAMILIES`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from dancedata.compute.audio_features import AudioFeatureConfig, fact_features
+from dancedata.pipeline.audio_families_stems import NmfdDrumsFamily, StemFeaturesFamily
+from dancedata.pipeline.audio_families_study import (
+    Mel96Family,
+    StftFramesFamily,
+    TempogramFamily,
+)
+from dancedata.pipeline.audio_family_base import (
+    ArraySpec,
+    AudioFamily,
+    AudioSettings,
+    TrackAudio,
+)
 
-
-@dataclass(frozen=True)
-class ArraySpec:
-    """One array a family writes, relative to the ``audio`` group."""
-
-    path: str
-    row_shape: tuple[int, ...]
-    dtype: Any
-    attrs: dict[str, Any] | None = None
-
-
-class AudioFamily:
-    """Base class: ``name``, ``arrays`` and ``compute``; ``config`` lists its settings."""
-
-    name: str = ""
-
-    def arrays(self, cfg: AudioFeatureConfig) -> list[ArraySpec]:
-        raise NotImplementedError
-
-    def compute(
-        self, y: np.ndarray, bpm: float | None, cfg: AudioFeatureConfig
-    ) -> dict[str, np.ndarray]:
-        """Arrays keyed by :attr:`ArraySpec.path`, each with one row per feature frame."""
-        raise NotImplementedError
-
-    def config(self) -> dict[str, Any]:
-        return {}
+__all__ = [
+    "DEFAULT_FAMILIES",
+    "FAMILIES",
+    "STEM_FAMILIES",
+    "ArraySpec",
+    "AudioFamily",
+    "AudioSettings",
+    "FactFamily",
+    "TrackAudio",
+    "default_families",
+    "family_problems",
+    "group_attrs",
+]
 
 
 class FactFamily(AudioFamily):
     """The FACT / AIST++ 35-d ingredients (see :mod:`dancedata.compute.audio_features`)."""
 
     name = "fact"
+    uses_bpm = True  # beats: beat_track(start_bpm=the music's BPM)
 
-    def arrays(self, cfg: AudioFeatureConfig) -> list[ArraySpec]:
+    def arrays(
+        self, cfg: AudioFeatureConfig, settings: AudioSettings | None = None
+    ) -> list[ArraySpec]:
         return [
             ArraySpec("onset_env", (), np.float32, {"recipe": "librosa.onset.onset_strength"}),
             ArraySpec("mfcc", (cfg.n_mfcc,), np.float32, {"recipe": "librosa.feature.mfcc"}),
@@ -76,5 +89,48 @@ class FactFamily(AudioFamily):
         return fact_features(y, bpm, cfg)
 
 
-FAMILIES: dict[str, AudioFamily] = {"fact": FactFamily()}
-DEFAULT_FAMILIES: tuple[str, ...] = ("fact",)
+FAMILIES: dict[str, AudioFamily] = {
+    family.name: family
+    for family in (
+        FactFamily(),
+        StemFeaturesFamily(),
+        NmfdDrumsFamily(),
+        Mel96Family(),
+        StftFramesFamily(),
+        TempogramFamily(),
+    )
+}
+DEFAULT_FAMILIES: tuple[str, ...] = ("fact", "stems", "nmfd")
+STEM_FAMILIES: tuple[str, ...] = ("stems", "nmfd")
+
+
+def default_families(settings: AudioSettings | None = None) -> list[str]:
+    """:data:`DEFAULT_FAMILIES`, without the stem families when ``settings.stems`` is none."""
+    stems = (settings or AudioSettings()).stems
+    return [n for n in DEFAULT_FAMILIES if stems != "none" or n not in STEM_FAMILIES]
+
+
+def family_problems(names: list[str], settings: AudioSettings) -> list[str]:
+    """One line per unknown family, or per family that cannot run with ``settings``."""
+    problems = [
+        f"unknown audio feature family {name!r}; choose from {sorted(FAMILIES)}"
+        for name in names
+        if name not in FAMILIES
+    ]
+    for name in names:
+        if name in FAMILIES:
+            reason = FAMILIES[name].check(settings)
+            if reason:
+                problems.append(f"audio family {name!r} {reason}")
+    return problems
+
+
+def group_attrs(
+    names: list[str] | tuple[str, ...], cfg: AudioFeatureConfig, settings: AudioSettings
+) -> dict[str, dict[str, Any]]:
+    """Attrs of the groups under ``audio`` that the families ``names`` describe."""
+    out: dict[str, dict[str, Any]] = {}
+    for name in names:
+        for group, attrs in FAMILIES[name].group_attrs(cfg, settings).items():
+            out.setdefault(group, {}).update(attrs)
+    return out

@@ -1,15 +1,21 @@
 """``dancedata featurize``: motion representations and audio features into a new version.
 
-Motion is processed in batches of whole consecutive sequences of about one zarr chunk
-(CHUNK_FRAMES frames) each, so memory stays bounded, families may look at neighbouring frames,
-and every output chunk is written once. Audio features are computed once per music track (never
-once per sequence) and the music table's frame ranges are rewritten from the actual feature
-lengths.
+The work is planned on the driver as independent units (see
+:mod:`dancedata.pipeline.featurize_units`): motion in chunk-aligned batches of whole sequences,
+written straight into pre-sized arrays; audio once per music track (never once per sequence),
+saved per track and packed in track order afterwards, with the music table's frame ranges
+rewritten from the actual feature lengths. Units run serially, on ``workers`` local processes
+or on a Dask cluster; the bytes written are the same whichever engine runs them.
+
+Resume: the version is built in ``versions/.tmp-<fingerprint[:16]>``; every finished unit leaves
+a marker, so a run killed part-way is continued by the next run with the same fingerprint, which
+redoes only the units without a marker. ``counts`` records ``units`` and ``resumed_units``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -19,21 +25,34 @@ from dancedata._version import __version__
 from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.compute.motion_representations import REPRESENTATIONS
 from dancedata.errors import InputError
+from dancedata.exec.executors import make_executor
+from dancedata.exec.units import Job, UnitReport, run_units
 from dancedata.ingest.result import CommandResult
-from dancedata.io.audio import load_mono
-from dancedata.pipeline.audio_families import DEFAULT_FAMILIES, FAMILIES, AudioFamily
-from dancedata.pipeline.motion_families import (
-    BASE_ARRAYS,
-    MotionBatch,
-    MotionFamily,
-    MotionSettings,
+from dancedata.pipeline.audio_families import (
+    FAMILIES,
+    ArraySpec,
+    AudioSettings,
+    default_families,
+    family_problems,
+    group_attrs,
+)
+from dancedata.pipeline.audio_track import audio_unit_counts
+from dancedata.pipeline.featurize_units import (
+    AudioJob,
+    AudioUnit,
+    MotionJob,
+    audio_output,
+    plan_motion_units,
+    run_audio_unit,
+    run_motion_unit,
 )
 from dancedata.pipeline.motion_families import DEFAULT_FAMILIES as DEFAULT_MOTION_FAMILIES
 from dancedata.pipeline.motion_families import FAMILIES as MOTION_FAMILIES
-from dancedata.progress import progress
+from dancedata.pipeline.motion_families import MotionSettings
 from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter
 from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
+from dancedata.store.fs import is_remote
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
 from dancedata.store.writer import VersionWriter, already_done, base_fingerprint
@@ -51,10 +70,30 @@ class FeaturizeOptions:
     # None: each joint's own order from the motion attrs (BVH rigs), else XYZ (intrinsic).
     euler_order: str | None = None
     motion_families: list[str] = field(default_factory=lambda: list(DEFAULT_MOTION_FAMILIES))
-    audio_families: list[str] = field(default_factory=lambda: list(DEFAULT_FAMILIES))
+    audio_families: list[str] | None = None  # None: default_families(audio_settings)
     audio_config: AudioFeatureConfig | None = None  # default: derived from the motion fps
+    audio_settings: AudioSettings = field(default_factory=AudioSettings)  # stems, NMFD, ...
     version: str | None = None  # parent version; default latest
     wait_for_lock: bool = False
+    # Execution only (never changes the data, so not in config()):
+    workers: int = 1  # local worker processes
+    dask: str | None = None  # Dask scheduler address, or "local:N"
+    unit_frames: int = 2 * CHUNK_FRAMES  # target motion frames per work unit
+    use_cache: bool = True  # per-track audio features from/to the feature cache
+    cache_dir: str | None = None  # default: dancedata.feature_cache.default_cache_dir()
+
+    def audio_family_names(self) -> list[str]:
+        if self.audio_families is None:
+            return default_families(self.audio_settings)
+        return list(self.audio_families)
+
+    def feature_cache_dir(self) -> str | None:
+        """The feature cache folder workers use (absolute), or None with the cache off."""
+        if not self.use_cache:
+            return None
+        from dancedata.feature_cache import default_cache_dir
+
+        return str(Path(self.cache_dir or default_cache_dir()).expanduser().resolve())
 
     def motion_settings(self) -> MotionSettings:
         return MotionSettings(
@@ -74,7 +113,10 @@ class FeaturizeOptions:
             ),
             "audio": audio_cfg.as_dict() if (self.audio and audio_cfg) else None,
             "audio_families": (
-                {name: FAMILIES[name].config() for name in sorted(self.audio_families)}
+                {
+                    name: FAMILIES[name].config(self.audio_settings)
+                    for name in sorted(self.audio_family_names())
+                }
                 if self.audio
                 else {}
             ),
@@ -87,11 +129,10 @@ def _validate(options: FeaturizeOptions) -> None:
         raise InputError(
             f"unknown motion feature family {unknown_motion}; choose from {sorted(MOTION_FAMILIES)}"
         )
-    unknown_families = sorted(set(options.audio_families) - set(FAMILIES))
-    if unknown_families:
-        raise InputError(
-            f"unknown audio feature family {unknown_families}; choose from {sorted(FAMILIES)}"
-        )
+    if options.audio:
+        problems = family_problems(options.audio_family_names(), options.audio_settings)
+        if problems:
+            raise InputError("; ".join(problems))
     unknown = sorted(set(options.representations) - set(REPRESENTATIONS))
     if unknown:
         raise InputError(f"unknown representation(s) {unknown}; choose from {REPRESENTATIONS}")
@@ -134,13 +175,10 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
     ]
     absent_families = [f for f in requested if f not in motion_families]
     n_joints = _skeleton_joints(reader)
-    motion_arrays = [
-        f"motion/{spec.path}"
-        for family in motion_families
-        for spec in family.arrays(n_joints, options.motion_settings())
-    ]
-    families = [FAMILIES[name] for name in options.audio_families] if options.audio else []
-    audio_arrays = [f"audio/{spec.path}" for f in families for spec in f.arrays(audio_cfg)]
+    settings = options.motion_settings()
+    motion_specs = [s for f in motion_families for s in f.arrays(n_joints, settings)]
+    families = [FAMILIES[name] for name in options.audio_family_names()] if options.audio else []
+    audio_specs = [spec for f in families for spec in f.arrays(audio_cfg, options.audio_settings)]
     with VersionWriter(
         store,
         command="featurize",
@@ -151,75 +189,107 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
         wait_for_lock=options.wait_for_lock,
         stage="featurize",
         parent_stages=reader.manifest.get("stages"),
+        resumable=True,
     ) as version:
-        for name in motion_arrays + audio_arrays:
-            version.remove_array(name)
-        counts: dict[str, Any] = {}
-        if options.motion:
-            counts["motion_frames"] = _featurize_motion(
-                reader, version, motion_families, options.motion_settings(), n_joints
+        sequences = reader.table("sequences")
+        starts = np.asarray(sequences.column("frame_start").to_numpy(), dtype=np.int64)
+        stops = np.asarray(sequences.column("frame_stop").to_numpy(), dtype=np.int64)
+        music = reader.table("music").to_pylist() if reader.has_table("music") else []
+        if not version.resumed:
+            _prepare(version, motion_specs, audio_specs, int(stops[-1]) if len(stops) else 0)
+        build = version.build_area()
+        store_id = _store_id(store)
+        jobs: list[Job] = []
+        if motion_specs:
+            motion_job = MotionJob(
+                store=store_id,
+                parent=parent,
+                parent_fingerprint=reader.manifest["fingerprint"],
+                build=build,
+                families=tuple(f.name for f in motion_families),
+                settings=settings,
+                needed=tuple(sorted({r for f in motion_families for r in f.requires})),
             )
+            units = plan_motion_units(starts, stops, CHUNK_FRAMES, options.unit_frames)
+            jobs.append(
+                Job("motion", partial(run_motion_unit, motion_job), "featurize motion", units)
+            )
+        audio_units = [
+            AudioUnit(i, row["music_id"], row["path"], row["bpm"], row.get("sha256"))
+            for i, row in enumerate(music)
+        ]
+        audio_job = AudioJob(
+            build=build,
+            families=tuple(f.name for f in families),
+            cfg=audio_cfg,
+            outputs=tuple(spec.path for spec in audio_specs),
+            settings=options.audio_settings,
+            cache_dir=options.feature_cache_dir(),
+        )
+        if audio_specs:
+            jobs.append(
+                Job(
+                    "audio",
+                    partial(run_audio_unit, audio_job),
+                    "featurize audio",
+                    audio_units,
+                    "track",
+                )
+            )
+        with make_executor(options.workers, options.dask) as executor:
+            # Tracks first: they are the long units, so short motion units fill the tail.
+            report = run_units(build, sorted(jobs, key=lambda j: j.kind != "audio"), executor)
+            engine = executor.describe()
+        counts: dict[str, Any] = {
+            "units": report.units,
+            "resumed_units": report.resumed,
+            "engine": engine,
+            "unit_timing": report.timing(),
+        }
+        if options.motion:
+            counts["motion_frames"] = int(stops[-1]) if len(stops) else 0
             counts["motion_absent"] = {
                 f.name: f"needs motion/{', motion/'.join(f.requires)}, which this store lacks"
                 for f in absent_families
             }
         if options.audio:
-            counts.update(_featurize_audio(reader, version, audio_cfg, families))
+            counts.update(
+                _pack_audio(reader, version, audio_cfg, audio_job, audio_units, music, report)
+            )
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts)
 
 
-def sequence_batches(
-    starts: np.ndarray, stops: np.ndarray, target_frames: int = CHUNK_FRAMES
-) -> list[tuple[int, int]]:
-    """Group consecutive sequences into batches of whole sequences of about ``target_frames``
-    frames: (first sequence index, stop sequence index) pairs covering all sequences."""
-    batches: list[tuple[int, int]] = []
-    first = 0
-    for i in range(len(starts)):
-        if stops[i] - starts[first] >= target_frames or i == len(starts) - 1:
-            batches.append((first, i + 1))
-            first = i + 1
-    return batches
+def _store_id(store: str | Path) -> str:
+    """The store as workers must name it: a URL, or an absolute local path."""
+    return str(store) if is_remote(store) else str(Path(store).resolve())
 
 
-def _featurize_motion(
-    reader: VersionReader,
+def _prepare(
     version: VersionWriter,
-    families: list[MotionFamily],
-    settings: MotionSettings,
-    n_joints: int,
-) -> int:
-    base = {
-        name: reader.array(f"motion/{name}")
-        for name in BASE_ARRAYS
-        if reader.has_array(f"motion/{name}")
-    }
-    attrs = reader.group_attrs("motion")
-    sequences = reader.table("sequences")
-    starts = np.asarray(sequences.column("frame_start").to_numpy(), dtype=np.int64)
-    stops = np.asarray(sequences.column("frame_stop").to_numpy(), dtype=np.int64)
-    group = version.zarr_group()["motion"]
-    writers = {
-        spec.path: FrameArrayWriter(group, spec.path, spec.row_shape, spec.dtype, attrs=spec.attrs)
-        for family in families
-        for spec in family.arrays(n_joints, settings)
-    }
-    needed = sorted({name for family in families for name in family.requires})
-    batches = sequence_batches(starts, stops)
-    for first, stop in progress(batches, "featurize motion", unit="batch"):
-        f0, f1 = int(starts[first]), int(stops[stop - 1])
-        batch = MotionBatch(
-            arrays={name: np.asarray(base[name][f0:f1], dtype=np.float64) for name in needed},
-            bounds=np.stack([starts[first:stop] - f0, stops[first:stop] - f0], axis=1),
-            attrs=attrs,
+    motion_specs: list[ArraySpec],
+    audio_specs: list[ArraySpec],
+    n_frames: int,
+) -> None:
+    """Replace the carried-over arrays this run recomputes and pre-size the motion arrays
+    (units write their chunks into them); then mark the build prepared for a resumed run."""
+    for spec in motion_specs:
+        version.remove_array(f"motion/{spec.path}")
+    for spec in audio_specs:
+        version.remove_array(f"audio/{spec.path}")
+    group = version.zarr_group().require_group("motion")
+    for spec in motion_specs:
+        array = group.create_array(
+            spec.path,
+            shape=(n_frames, *spec.row_shape),
+            chunks=(CHUNK_FRAMES, *spec.row_shape),
+            dtype=spec.dtype,
+            fill_value=0,
+            overwrite=False,
         )
-        for family in families:
-            for path, values in family.compute(batch, settings).items():
-                writers[path].append(values)
-    for writer in writers.values():
-        writer.close()
-    return int(stops[-1]) if len(stops) else 0
+        if spec.attrs:
+            array.attrs.update(spec.attrs)
+    version.mark_prepared({"motion_frames": n_frames})
 
 
 def _skeleton_joints(reader: VersionReader) -> int:
@@ -227,15 +297,20 @@ def _skeleton_joints(reader: VersionReader) -> int:
     return len(skeleton.get("joints", []))
 
 
-def _featurize_audio(
+def _pack_audio(
     reader: VersionReader,
     version: VersionWriter,
     cfg: AudioFeatureConfig,
-    families: list[AudioFamily],
+    job: AudioJob,
+    units: list[AudioUnit],
+    music: list[dict[str, Any]],
+    report: UnitReport,
 ) -> dict[str, Any]:
-    if not reader.has_table("music"):
+    """Concatenate the tracks' saved features in music-table order into the audio arrays
+    (one streaming writer per array, each chunk written once) and rewrite the music table's
+    frame ranges from the actual feature lengths."""
+    if not music:
         return {"music_tracks": 0}
-    music = reader.table("music").to_pylist()
     audio = version.zarr_group().require_group("audio")
     audio.attrs.update(
         {
@@ -243,30 +318,33 @@ def _featurize_audio(
             "sr": cfg.sr,
             "hop_length": cfg.hop_length,
             "n_fft": cfg.n_fft,
-            "families": [f.name for f in families],
+            "families": list(job.families),
         }
     )
-    specs = [spec for family in families for spec in family.arrays(cfg)]
+    specs = [spec for name in job.families for spec in FAMILIES[name].arrays(cfg, job.settings)]
+    groups = group_attrs(job.families, cfg, job.settings)  # e.g. audio/stems: written whole
+    for path in [*groups, *(spec.path for spec in specs)]:
+        version.remove_array(f"audio/{path}")  # a pack cut short by a kill starts over
+    audio = version.zarr_group().require_group("audio")
+    for group, attrs in groups.items():
+        audio.require_group(group).attrs.update(attrs)
     writers = {
         spec.path: FrameArrayWriter(audio, spec.path, spec.row_shape, spec.dtype, attrs=spec.attrs)
         for spec in specs
     }
     start = 0
-    for row in progress(music, "featurize audio", unit="track"):
-        y = load_mono(row["path"], cfg.sr)
-        features: dict[str, np.ndarray] = {}
-        for family in families:
-            features.update(family.compute(y, row["bpm"], cfg))
-        n = min(values.shape[0] for values in features.values())
+    for unit, row in zip(units, music, strict=True):
+        n = int(report.results[f"audio/{unit.id}"]["frames"])
         for path, writer in writers.items():
-            writer.append(features[path][:n])
+            writer.append(job.build.load_array(audio_output(unit, path)))
         row["frame_start"], row["frame_stop"] = start, start + n
         start += n
     for writer in writers.values():
         writer.close()
     version.write_table("music", build_table("music", music))
     _update_sequence_audio_frames(reader, version, music)
-    return {"music_tracks": len(music), "audio_frames": start}
+    stats = audio_unit_counts([report.results[f"audio/{unit.id}"] for unit in units])
+    return {"music_tracks": len(music), "audio_frames": start, **stats}
 
 
 def _update_sequence_audio_frames(

@@ -82,6 +82,12 @@ def segment(store: str | Path, options: SegmentOptions) -> CommandResult:
         parent_stages=reader.manifest.get("stages"),
     ) as version:
         version.write_table("measures", build_table("measures", rows))
-        counts = {"measures": len(rows), "sequences": len({r["seq_id"] for r in rows})}
+        # One unit, committed atomically: segment is quick, so a killed run just starts over.
+        counts = {
+            "measures": len(rows),
+            "sequences": len({r["seq_id"] for r in rows}),
+            "units": 1,
+            "resumed_units": 0,
+        }
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts)

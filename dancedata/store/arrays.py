@@ -32,10 +32,16 @@ class FrameArrayWriter:
         *,
         attrs: dict[str, Any] | None = None,
         chunk_frames: int = CHUNK_FRAMES,
+        compressors: Any = "auto",
+        chunks_per_write: int = 1,
     ) -> None:
+        """``compressors`` as zarr's ``create_array`` takes them ("auto": zarr's default).
+        ``chunks_per_write`` whole chunks are buffered and written in one call, which zarr
+        compresses in parallel threads (memory: that many chunks per array)."""
         self.row_shape = tuple(row_shape)
         self.dtype = np.dtype(dtype)
         self.chunk_frames = chunk_frames
+        self.chunks_per_write = max(1, chunks_per_write)
         self.array = group.create_array(
             path,
             shape=(0, *self.row_shape),
@@ -43,6 +49,7 @@ class FrameArrayWriter:
             dtype=self.dtype,
             fill_value=0,
             overwrite=False,
+            compressors=compressors,
         )
         if attrs:
             self.array.attrs.update(attrs)
@@ -61,7 +68,7 @@ class FrameArrayWriter:
             return
         self._buffer.append(block)
         self._buffered += block.shape[0]
-        if self._buffered >= self.chunk_frames:
+        if self._buffered >= self.chunk_frames * self.chunks_per_write:
             self._flush(final=False)
 
     def _flush(self, final: bool) -> None:

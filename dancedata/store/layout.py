@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from dancedata.errors import StoreError
+from dancedata.store.fs import is_remote, local_path
 
 FORMAT_NAME = "dancedata-store"
 FORMAT_VERSION = 1
@@ -31,6 +32,7 @@ TABLE_FILES = {
     "music": "music.parquet",
     "measures": "measures.parquet",
     "splits": "splits.parquet",
+    "cameras": "cameras.parquet",
 }
 
 
@@ -72,8 +74,16 @@ def fsync_dir(path: Path) -> None:
 class StoreLayout:
     """Paths and pointer of one local store directory. Knows nothing about arrays or tables."""
 
+    def __new__(cls, root: str | Path) -> StoreLayout:
+        # A URL (s3://...) gets the remote layout, whatever the call site (see store.remote).
+        if cls is StoreLayout and is_remote(root):
+            from dancedata.store.remote import RemoteLayout
+
+            return super().__new__(RemoteLayout)
+        return super().__new__(cls)
+
     def __init__(self, root: str | Path) -> None:
-        self.root = Path(root)
+        self.root = local_path(root)
 
     @property
     def store_file(self) -> Path:
@@ -170,6 +180,16 @@ class StoreLayout:
         if not self.versions_dir.is_dir():
             return []
         return sorted(p for p in self.versions_dir.iterdir() if p.name.startswith(TEMP_PREFIX))
+
+    # -- reading files of a version (the remote layout overrides these) ------------------------
+    def has_file(self, version: str, rel: str) -> bool:
+        return (self.version_dir(version) / rel).is_file()
+
+    def read_bytes(self, version: str, rel: str) -> bytes:
+        return (self.version_dir(version) / rel).read_bytes()
+
+    def zarr_location(self, version: str) -> str:
+        return str(self.version_dir(version) / ZARR_DIR)
 
     def read_manifest(self, version: str) -> dict[str, Any]:
         path = self.version_dir(version) / MANIFEST_FILE

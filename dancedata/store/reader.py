@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dancedata.errors import StoreError
+from dancedata.store.fs import is_remote, zarr_store
 from dancedata.store.layout import TABLE_FILES, ZARR_DIR, StoreLayout
 
 if TYPE_CHECKING:
@@ -27,10 +28,16 @@ class VersionReader:
     def manifest(self) -> dict[str, Any]:
         return self.layout.read_manifest(self.version)
 
+    @property
+    def remote(self) -> bool:
+        return is_remote(str(self.layout.root))
+
     @cached_property
     def root(self) -> zarr.Group | None:
         import zarr
 
+        if self.remote:
+            return self._remote_root()
         path = self.path / ZARR_DIR
         if not path.exists():
             return None
@@ -43,7 +50,25 @@ class VersionReader:
             except (ValueError, KeyError, FileNotFoundError):
                 return zarr.open_group(str(path), mode="r")
 
+    def _remote_root(self) -> zarr.Group | None:
+        import warnings
+
+        import zarr
+
+        store = zarr_store(self.layout.zarr_location(self.version), read_only=True)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", category=UserWarning)
+            try:
+                return zarr.open_group(store=store, mode="r", use_consolidated=True)
+            except (ValueError, KeyError, FileNotFoundError):
+                try:
+                    return zarr.open_group(store=store, mode="r")
+                except FileNotFoundError:
+                    return None
+
     def has_table(self, name: str) -> bool:
+        if self.remote:
+            return self.layout.has_file(self.version, TABLE_FILES[name])
         return (self.path / TABLE_FILES[name]).is_file()
 
     def table(self, name: str) -> pa.Table:
@@ -52,6 +77,9 @@ class VersionReader:
         if name not in self._tables:
             import pyarrow.parquet as pq
 
+            if self.remote:
+                self._tables[name] = self._remote_table(name)
+                return self._tables[name]
             path = self.path / TABLE_FILES[name]
             if not path.is_file():
                 raise StoreError(f"version {self.version} has no {name} table", self.path)
@@ -60,6 +88,21 @@ class VersionReader:
             except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
                 raise StoreError(f"unreadable table: {exc}", path) from None
         return self._tables[name]
+
+    def _remote_table(self, name: str) -> pa.Table:
+        import io
+
+        import pyarrow.parquet as pq
+
+        where = f"{self.path}/{TABLE_FILES[name]}"
+        try:
+            data = self.layout.read_bytes(self.version, TABLE_FILES[name])
+        except FileNotFoundError:
+            raise StoreError(f"version {self.version} has no {name} table", where) from None
+        try:
+            return pq.read_table(io.BytesIO(data))
+        except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
+            raise StoreError(f"unreadable table: {exc}", where) from None
 
     def has_array(self, name: str) -> bool:
         root = self.root

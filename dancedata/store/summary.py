@@ -3,11 +3,31 @@
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from dancedata.store.layout import StoreLayout
+from dancedata.store.layout import TABLE_FILES, StoreLayout
 from dancedata.store.reader import VersionReader
+
+# Per annotation kind: the sequences-table column (AIST++ ingest) and whether a row lacks it.
+_MISSING_WHEN: dict[str, tuple[str, Callable[[Any], bool]]] = {
+    "keypoints3d": ("has_keypoints3d", lambda value: not value),
+    "keypoints2d": ("has_keypoints2d", lambda value: not value),
+    "cameras": ("camera_setting", lambda value: value is None),
+    "music": ("music_missing", bool),
+}
+
+
+def annotations_missing(sequences: list[dict[str, Any]]) -> dict[str, int]:
+    """Per annotation kind the sequences table tracks, how many sequences lack it."""
+    if not sequences:
+        return {}
+    return {
+        kind: sum(lacks(s[column]) for s in sequences)
+        for kind, (column, lacks) in _MISSING_WHEN.items()
+        if column in sequences[0]
+    }
 
 
 def lineage(layout: StoreLayout, version: str) -> list[dict[str, Any]]:
@@ -49,10 +69,14 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
         info["audio_truncated_sequences"] = sum(
             1 for s in sequences if (s.get("audio_truncated_frames") or 0) > 0
         )
+        info["annotations_missing"] = annotations_missing(sequences)
     if reader.has_table("music"):
         info["music_tracks"] = reader.table("music").num_rows
     if reader.has_table("measures"):
         info["measures"] = reader.table("measures").num_rows
+    if reader.has_table("cameras"):
+        settings = reader.table("cameras").column("setting").to_pylist()
+        info["camera_settings"] = sorted(set(settings))
     if reader.has_table("splits"):
         splits = Counter((r["scheme"], r["split"]) for r in reader.table("splits").to_pylist())
         table: dict[str, dict[str, int]] = {}
@@ -68,9 +92,7 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
         for name in reader.array_names()
     }
     info["tables"] = {
-        name: reader.table(name).num_rows
-        for name in ("sequences", "music", "measures", "splits")
-        if reader.has_table(name)
+        name: reader.table(name).num_rows for name in TABLE_FILES if reader.has_table(name)
     }
     return info
 
@@ -91,6 +113,9 @@ def format_info(info: dict[str, Any]) -> str:
         lines.append(f"tempi     {info['bpms']} BPM")
         if info.get("music_missing"):
             lines.append(f"music     missing for {info['music_missing']} sequences")
+        for kind, n in info.get("annotations_missing", {}).items():
+            if n and kind != "music":
+                lines.append(f"missing   {kind} for {n} of {info['sequences']} sequences")
         if info.get("audio_truncated_sequences"):
             lines.append(
                 f"audio     longer than motion (truncated) in "
@@ -99,15 +124,23 @@ def format_info(info: dict[str, Any]) -> str:
     for key in ("music_tracks", "measures"):
         if key in info:
             lines.append(f"{key:<9} {info[key]}")
+    if info.get("camera_settings"):
+        lines.append(f"cameras   {len(info['camera_settings'])} settings of 9 views")
     if "split_files" in info:
         files = info["split_files"]
-        lines.append(f"ignore    {files.get('ignore_list', 0)} names in ignore_list.txt")
+        line = f"ignore    {files.get('ignore_list', 0)} names in ignore_list.txt"
+        if "ignore_list_in_store" in files:
+            line += f", {files['ignore_list_in_store']} of them in the store"
+        lines.append(line)
         for scheme, splits in files.get("schemes", {}).items():
             for split, c in splits.items():
-                lines.append(
+                line = (
                     f"split     {scheme}/{split}: {c['listed']} listed, {c['ignored']} ignored, "
                     f"{c['usable']} usable, {c['in_store']} in store"
                 )
+                if c.get("missing_from_store"):
+                    line += f" ({c['missing_from_store']} listed but not in the store: skipped)"
+                lines.append(line)
     if "splits_in_store" in info:
         for scheme, splits in info["splits_in_store"].items():
             lines.append(f"in store  {scheme}: " + ", ".join(f"{k} {v}" for k, v in splits.items()))

@@ -6,6 +6,7 @@ table, array or file it concerns.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -13,12 +14,21 @@ import numpy as np
 
 from dancedata.errors import StoreError
 from dancedata.store.contract import store_schema
+from dancedata.store.fs import is_remote
+from dancedata.store.integrity import verify_store
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
 
 
-def validate_store(store: str | Path, version: str | None = None) -> list[str]:
-    """Problems with ``store`` (every committed version, or only ``version``)."""
+def validate_store(
+    store: str | Path, version: str | None = None, *, deep: bool = False
+) -> list[str]:
+    """Problems with ``store`` (every committed version, or only ``version``).
+
+    Every version is also checked against the ``checksums.json`` recorded at its commit: files
+    present with their recorded sizes, nothing unrecorded added. ``deep`` re-hashes every file
+    (see :mod:`dancedata.store.integrity`) and names each corrupted chunk, array or table.
+    """
     layout = StoreLayout(store)
     problems: list[str] = []
     try:
@@ -33,8 +43,16 @@ def validate_store(store: str | Path, version: str | None = None) -> list[str]:
         problems.append(f"store.json: latest {pointer['latest']!r} is not a committed version")
     if not committed:
         problems.append("store has no committed version")
-    names = committed if version is None else [layout.resolve(version)]
+    try:
+        names = committed if version is None else [layout.resolve(version)]
+    except StoreError as exc:
+        return [*problems, str(exc)]
+    # checksums.json is recorded by local commits only (remote stores: see store.remote)
+    integrity = (
+        {name: [] for name in names} if is_remote(store) else verify_store(store, names, deep=deep)
+    )
     for name in names:
+        problems += [f"{name}: {p}" for p in integrity[name]]
         problems += [f"{name}: {p}" for p in validate_version(VersionReader(store, name))]
     return problems
 
@@ -55,9 +73,18 @@ def validate_version(reader: VersionReader) -> list[str]:
             continue
         problems += _check_columns(table, arrow, spec)
         tables[table] = arrow.to_pylist()
-    problems += _check_ranges(reader, tables)
-    problems += _check_arrays(reader, tables, schema)
+    problems += _guarded("tables", lambda: _check_ranges(reader, tables))
+    problems += _guarded("data.zarr", lambda: _check_arrays(reader, tables, schema))
     return problems
+
+
+def _guarded(what: str, check: Callable[[], list[str]]) -> list[str]:
+    """Run one check; a store damaged enough to make it fail (unreadable metadata, a chunk
+    that does not decompress, a table missing a key column) is one problem, not a traceback."""
+    try:
+        return check()
+    except Exception as exc:  # zarr, numcodecs and pyarrow raise many unrelated types
+        return [f"{what}: cannot be read ({type(exc).__name__}: {exc})"]
 
 
 def _check_manifest(reader: VersionReader, schema: dict[str, Any]) -> list[str]:
@@ -195,7 +222,35 @@ def _check_arrays(
             sample = np.asarray(array[: min(array.shape[0], 4096)])
             if not np.all(np.isfinite(sample)) and name not in (
                 "motion/keypoints3d",
+                "motion/keypoints3d_optim",
+                "motion/det_scores",
                 "motion/positions",
             ):
                 problems.append(f"{name}: holds NaN or Inf")
     return problems
+
+
+def store_notes(store: str | Path) -> list[str]:
+    """Things worth knowing that are not contract violations: unfinished temporary versions
+    (never visible to readers; the next writer resumes or removes them) and the write lock."""
+    from dancedata.store.lock import LOCK_FILE, describe_holder, judge_holder, read_holder
+
+    layout = StoreLayout(store)
+    if is_remote(store):
+        return [
+            f"unfinished temporary version {url.rsplit('/', 1)[-1]} (invisible to readers)"
+            for url in layout.temp_dirs()
+        ]
+    notes = [
+        f"unfinished temporary version {path.name} (invisible to readers; the next writer "
+        "resumes or removes it)"
+        for path in layout.temp_dirs()
+    ]
+    try:
+        holder = read_holder(layout.root / LOCK_FILE)
+    except StoreError as exc:
+        return [*notes, str(exc)]
+    if holder is not None:
+        state = judge_holder(holder)
+        notes.append(f"write lock {state.status}: {describe_holder(holder)}; {state.reason}")
+    return notes

@@ -21,7 +21,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dancedata._version import __version__
-from dancedata.errors import StoreError
+from dancedata.errors import DancedataError, StoreError
+from dancedata.store.build import BUILD_DIR, PREPARED_FILE, BuildArea
+from dancedata.store.fs import is_remote
+from dancedata.store.integrity import record_checksums
 from dancedata.store.layout import (
     MANIFEST_FILE,
     TABLE_FILES,
@@ -74,11 +77,14 @@ def _link_or_copy_tree(src: Path, dst: Path, skip: set[str]) -> None:
                 shutil.copy2(source, target)
 
 
-def clean_abandoned_temps(layout: StoreLayout) -> list[str]:
-    """Remove temporary version directories left by writers that died. Call under the lock:
-    then no live writer of this store owns any of them."""
+def clean_abandoned_temps(layout: StoreLayout, keep: str | None = None) -> list[str]:
+    """Remove temporary version directories left by writers that died, except ``keep`` (the
+    one a resumable writer is about to reuse). Call under the lock: then no live writer of this
+    store owns any of them."""
     removed = []
     for path in layout.temp_dirs():
+        if path.name == keep:
+            continue
         shutil.rmtree(path, ignore_errors=True)
         removed.append(path.name)
     return removed
@@ -109,6 +115,7 @@ class VersionWriter:
         wait_for_lock: bool = False,
         stage: str | None = None,
         parent_stages: dict[str, str] | None = None,
+        resumable: bool = False,
     ) -> None:
         self.layout = StoreLayout(store)
         # Which fingerprint produced each stage of this version's data ("ingest", "featurize",
@@ -129,16 +136,37 @@ class VersionWriter:
         self.tmp: Path | None = None
         self.committed_as: str | None = None
         self._zarr_group: zarr.Group | None = None
+        # resume (issue 8.1): the temporary directory is named from the fingerprint; a run that
+        # finds it prepared (see dancedata.store.build) reuses it and the units it finished.
+        self.resumable = resumable
+        self.resumed = False
+
+    def __new__(cls, store: str | Path, **kwargs: Any) -> VersionWriter:
+        if cls is VersionWriter and is_remote(store):
+            from dancedata.store.remote import RemoteVersionWriter
+
+            return super().__new__(RemoteVersionWriter)
+        return super().__new__(cls)
+
+    def temp_name(self) -> str:
+        """``.tmp-<fingerprint[:16]>`` when resumable, else unique to this process."""
+        if self.resumable:
+            return f"{TEMP_PREFIX}{self.fingerprint[:16]}"
+        return f"{TEMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"
 
     # -- lifecycle -----------------------------------------------------------------------------
     def __enter__(self) -> VersionWriter:
         self.layout.ensure()
         self._lock.acquire()
         try:
-            self.cleaned_temps = clean_abandoned_temps(self.layout)
-            self.tmp = self.layout.versions_dir / (
-                f"{TEMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"
-            )
+            name = self.temp_name()
+            self.cleaned_temps = clean_abandoned_temps(self.layout, keep=name)
+            self.tmp = self.layout.versions_dir / name
+            if self.resumable and (self.tmp / BUILD_DIR / PREPARED_FILE).is_file():
+                self.resumed = True
+                return self
+            if self.tmp.exists():
+                shutil.rmtree(self.tmp)
             self.tmp.mkdir(parents=True)
             if self.parent is not None and self.carry_over:
                 _link_or_copy_tree(
@@ -151,12 +179,38 @@ class VersionWriter:
 
     def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
         if self.committed_as is None:
-            self._discard()
+            self._discard(exc)
 
-    def _discard(self) -> None:
-        if self.tmp is not None and self.tmp.exists():
+    def _keep_for_resume(self, exc: object) -> bool:
+        """A resumable build survives a crash or interrupt (the next run with the same
+        fingerprint reuses it), but not bad input, which would fail the same way again."""
+        return self.resumable and exc is not None and not isinstance(exc, DancedataError)
+
+    def _discard(self, exc: object = None) -> None:
+        if self.tmp is not None and self.tmp.exists() and not self._keep_for_resume(exc):
             shutil.rmtree(self.tmp, ignore_errors=True)
         self._lock.release()
+
+    # -- resumable builds ----------------------------------------------------------------------
+    def build_area(self) -> BuildArea:
+        """The temporary version as plain data, for workers to write into."""
+        return BuildArea(str(Path(self.path).resolve()))  # absolute: workers may run elsewhere
+
+    def reset_outputs(self) -> None:
+        """Delete everything built so far except the build state (``.build``): for commands
+        that rewrite all their outputs from finished units on every run (ingest)."""
+        for entry in self.path.iterdir():
+            if entry.name == BUILD_DIR:
+                continue
+            if entry.is_dir():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+        self._zarr_group = None
+
+    def mark_prepared(self, info: dict[str, Any] | None = None) -> None:
+        """Record that the version's arrays exist, pre-sized: a resumed run skips preparing."""
+        self.build_area().write_json(PREPARED_FILE, info or {})
 
     # -- content -------------------------------------------------------------------------------
     @property
@@ -197,24 +251,9 @@ class VersionWriter:
         self.skipped.append({"path": str(path), "error": error})
 
     # -- commit --------------------------------------------------------------------------------
-    def commit(self, counts: dict[str, Any] | None = None) -> str:
-        """Consolidate metadata, write manifest.json, rename into place, move store.json."""
-        if self.committed_as is not None:
-            return self.committed_as
-        zarr_path = self.path / ZARR_DIR
-        if zarr_path.exists():
-            import warnings
-
-            import zarr
-
-            with warnings.catch_warnings():
-                # Consolidated metadata is a zarr-python extension to v3; we write it for fast
-                # opens and readers that ignore it still work.
-                warnings.simplefilter("ignore", category=UserWarning)
-                zarr.consolidate_metadata(str(zarr_path))
-        committed = self.layout.committed_versions()
-        name = f"v{version_number(committed[-1]) + 1 if committed else 1}"
-        manifest = {
+    def manifest(self, name: str, counts: dict[str, Any] | None) -> dict[str, Any]:
+        """The manifest.json of this version, committed as ``name``."""
+        return {
             "format_version": 1,
             "version": name,
             "parent": self.parent,
@@ -229,6 +268,28 @@ class VersionWriter:
             "libraries": library_versions(),
             "counts": counts or {},
         }
+
+    def commit(self, counts: dict[str, Any] | None = None) -> str:
+        """Consolidate metadata, write manifest.json, rename into place, move store.json."""
+        if self.committed_as is not None:
+            return self.committed_as
+        shutil.rmtree(self.path / BUILD_DIR, ignore_errors=True)
+        zarr_path = self.path / ZARR_DIR
+        if zarr_path.exists():
+            import warnings
+
+            import zarr
+
+            with warnings.catch_warnings():
+                # Consolidated metadata is a zarr-python extension to v3; we write it for fast
+                # opens and readers that ignore it still work.
+                warnings.simplefilter("ignore", category=UserWarning)
+                zarr.consolidate_metadata(str(zarr_path))
+        committed = self.layout.committed_versions()
+        name = f"v{version_number(committed[-1]) + 1 if committed else 1}"
+        manifest = self.manifest(name, counts)
+        # integrity (issue 8): checksums.json of every data file, written just before the manifest
+        record_checksums(self.path, self.layout.version_dir(self.parent) if self.parent else None)
         write_json_atomic(self.path / MANIFEST_FILE, manifest)
         final = self.layout.version_dir(name)
         os.rename(self.path, final)

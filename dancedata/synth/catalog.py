@@ -1,19 +1,29 @@
 """Which sequences a synthetic AIST++ dataset holds, and how they fall into the splits.
 
-Pure planning, no IO. The full twin mirrors AIST++: 10 genres × 6 music ids (real tempi),
-basic pieces of 4 measures and advanced pieces of about 16 measures, held-out music ids for
-crossmodal val/test. The demo picks a small, balanced subset of the same plan.
+Pure planning, no IO. The full twin mirrors AIST++: 1408 sequences over 10 genres × 6 music ids
+(real tempi), basic pieces of 4 measures and advanced pieces of about 16 measures (7.4–48 s),
+the real split sizes (crossmodal train/val/test 980/20/20 with val/test on the held-out music
+ids, pose 868/70/470) and an ignore list of 45 with 28 of them in crossmodal train. The demo
+picks a small, balanced subset of the same plan, with splits in the same proportions.
 """
 
 from __future__ import annotations
 
+import math
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from dancedata.aist_names import GENRES, HELD_OUT_MUSIC_IDS, music_bpm
 
 FPS = 60.0
 GENRE_ORDER: tuple[str, ...] = tuple(GENRES)  # gBR, gPO, gLO, gMH, gLH, gHO, gWA, gKR, gJS, gJB
+N_FULL = 1408
+# The real AIST++ split sizes (REFERENCE.md, "Splits").
+CROSSMODAL_SIZES: dict[str, int] = {"train": 980, "val": 20, "test": 20}
+POSE_SIZES: dict[str, int] = {"train": 868, "val": 70, "test": 470}
+IGNORE_SIZE, IGNORE_IN_CROSSMODAL_TRAIN = 45, 28
+# Real durations run from 7.4 s to 48 s; basic pieces at the fastest tempi are stretched to 7.4 s.
+MIN_DURATION_S = 7.4
 
 
 @dataclass(frozen=True)
@@ -26,6 +36,7 @@ class PlannedSequence:
     choreo: str
     n_frames: int
     split: str  # crossmodal split: train / val / test / none
+    pose_split: str = "train"  # pose split: train / val / test
 
     @property
     def bpm(self) -> float:
@@ -55,7 +66,7 @@ def _sequence(
 ) -> PlannedSequence:
     bpm = music_bpm(music_id)
     if situation == "sBM":
-        n_frames = frames_for_measures(bpm, 4)
+        n_frames = max(frames_for_measures(bpm, 4), math.ceil(MIN_DURATION_S * FPS))
     else:
         # Advanced pieces: about 16 measures, a frame or two short of the last downbeat.
         n_frames = frames_for_measures(bpm, 16) - 1 - stable_seed(seed, genre, dancer) % 2
@@ -92,7 +103,30 @@ def demo_plan(n_sequences: int, seed: int = 0) -> list[PlannedSequence]:
         for genre_seqs in per_genre:
             if len(plan) < n_sequences:
                 plan.append(genre_seqs[round_])
-    return plan
+    return assign_pose_splits(plan, seed)
+
+
+def _ranked(names: list[str], seed: int, purpose: str) -> list[str]:
+    """``names`` in a seed-dependent order that does not depend on their input order."""
+    return sorted(names, key=lambda name: (stable_seed(seed, purpose, name), name))
+
+
+def _scaled(sizes: dict[str, int], n: int) -> dict[str, int]:
+    """Split sizes in the proportions of ``sizes`` for ``n`` sequences (exact when n = 1408)."""
+    total = sum(sizes.values())
+    scaled = {k: round(v * n / total) for k, v in sizes.items() if k != "train"}
+    scaled["train"] = n - sum(scaled.values())
+    return scaled
+
+
+def assign_pose_splits(plan: list[PlannedSequence], seed: int) -> list[PlannedSequence]:
+    """Pose split of every sequence: test and val drawn at random in the real proportions
+    (470 and 70 of 1408), the rest train."""
+    sizes = _scaled(POSE_SIZES, len(plan))
+    ranked = _ranked([s.seq_id for s in plan], seed, "pose")
+    split_of = {name: "test" for name in ranked[: sizes["test"]]}
+    split_of |= {name: "val" for name in ranked[sizes["test"] : sizes["test"] + sizes["val"]]}
+    return [replace(s, pose_split=split_of.get(s.seq_id, "train")) for s in plan]
 
 
 def full_plan(seed: int = 0) -> list[PlannedSequence]:
@@ -100,8 +134,9 @@ def full_plan(seed: int = 0) -> list[PlannedSequence]:
 
     Per genre, 3 dancers × 6 music ids × 7 basic choreographies (126 basic pieces) plus 15
     advanced pieces (14 in the last two genres) on the training songs. Crossmodal test and val
-    take two basic ch02 pieces of the held-out song each, as the official split does; the
-    remaining pieces on held-out songs belong to no crossmodal split.
+    take two basic ch02 / ch03 pieces of the held-out song each, as the official split does (20
+    each); train takes every advanced piece and basic pieces on the other songs up to 980; the
+    rest belong to no crossmodal split. Pose splits: see :func:`assign_pose_splits`.
     """
     plan: list[PlannedSequence] = []
     for gi, genre in enumerate(GENRE_ORDER):
@@ -126,15 +161,29 @@ def full_plan(seed: int = 0) -> list[PlannedSequence]:
             music_id = train_music[k % len(train_music)]
             dancer = dancers[k % 3]
             plan.append(_sequence(genre, "sFM", dancer, music_id, 10 + k, "train", seed))
-    return plan
+    # Trim crossmodal train to the real 980: advanced pieces stay, basic ones are drawn.
+    advanced = sum(s.split == "train" and s.situation == "sFM" for s in plan)
+    basic = [s.seq_id for s in plan if s.split == "train" and s.situation == "sBM"]
+    keep = set(_ranked(basic, seed, "crossmodal")[: CROSSMODAL_SIZES["train"] - advanced])
+    plan = [
+        replace(s, split="none")
+        if s.situation == "sBM" and s.split == "train" and s.seq_id not in keep
+        else s
+        for s in plan
+    ]
+    return assign_pose_splits(plan, seed)
 
 
 def ignore_list(plan: list[PlannedSequence], seed: int = 0) -> list[str]:
-    """About 3% of the sequences (at least one when any are planned), drawn from training
-    sequences, as AIST++'s ignore list of sequences with bad motion fits."""
+    """Sequences with "bad motion fits", as AIST++'s ignore list: 45 of 1408 (3.2%, at least
+    one), 28 of the 45 from crossmodal train and the rest from sequences in no crossmodal split
+    (from train when there are none), never from val or test."""
     train = [s.seq_id for s in plan if s.split == "train"]
-    if not train:
+    other = [s.seq_id for s in plan if s.split == "none"]
+    if not train and not other:
         return []
-    n = max(1, round(0.032 * len(plan)))
-    ranked = sorted(train, key=lambda name: stable_seed(seed, "ignore", name))
-    return sorted(ranked[:n])
+    n = max(1, round(IGNORE_SIZE * len(plan) / N_FULL))
+    n_train = round(n * IGNORE_IN_CROSSMODAL_TRAIN / IGNORE_SIZE) if other else n
+    chosen = _ranked(train, seed, "ignore")[:n_train]
+    chosen += _ranked(other, seed, "ignore")[: n - len(chosen)]
+    return sorted(chosen)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from dancedata.compute.camera import rodrigues_to_rotmat
 from dancedata.smpl import SMPL_PARENTS, SMPL_REST_OFFSETS_M
 
 # Per joint: (axis, rest angle, beat amplitude, measure amplitude) in radians; axes are the
@@ -34,6 +35,31 @@ _JOINT_PATTERNS: dict[int, list[tuple[int, float, float, float]]] = {
 }
 
 
+def extrinsic_xyz_to_rotvec(euler: np.ndarray) -> np.ndarray:
+    """(..., 3) extrinsic x-y-z Euler angles (radians; scipy ``"xyz"``: R = Rz Ry Rx) → (..., 3)
+    rotation vectors with angle in [0, π], as scipy's ``as_rotvec`` gives them. Closed form
+    through the quaternion qz ⊗ qy ⊗ qx, vectorised (scipy loops per rotation)."""
+    half = 0.5 * np.asarray(euler, dtype=np.float64)
+    c, s = np.cos(half), np.sin(half)
+    cx, cy, cz = c[..., 0], c[..., 1], c[..., 2]
+    sx, sy, sz = s[..., 0], s[..., 1], s[..., 2]
+    w = cz * cy * cx + sz * sy * sx
+    v = np.stack(
+        [
+            cz * cy * sx - sz * sy * cx,
+            cz * sy * cx + sz * cy * sx,
+            sz * cy * cx - cz * sy * sx,
+        ],
+        axis=-1,
+    )
+    sign = np.where(w < 0, -1.0, 1.0)
+    w, v = w * sign, v * sign[..., None]
+    norm = np.linalg.norm(v, axis=-1)
+    angle = 2.0 * np.arctan2(norm, w)
+    scale = np.where(norm > 1e-12, angle / np.maximum(norm, 1e-300), 2.0 / np.maximum(w, 1e-300))
+    return v * scale[..., None]
+
+
 def synth_smpl_motion(
     n_frames: int, fps: float, bpm: float, seed: int = 0
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -46,9 +72,8 @@ def synth_smpl_motion(
     t = np.arange(n_frames) / fps
     beat_phase = 2 * np.pi * t * bpm / 60.0
     measure_phase = beat_phase / 4.0
-    euler = np.zeros((n_frames, 24, 3))
-    for joint in range(24):
-        euler[:, joint, :] = 0.03 * np.sin(beat_phase[:, None] + rng.uniform(0, 2 * np.pi, 3))
+    sway_phases = rng.uniform(0, 2 * np.pi, (24, 3))  # the same draws as joint by joint
+    euler = 0.03 * np.sin(beat_phase[:, None, None] + sway_phases)
     for joint, patterns in _JOINT_PATTERNS.items():
         offset = rng.uniform(0, 2 * np.pi)
         for axis, rest, beat_amp, measure_amp in patterns:
@@ -61,7 +86,7 @@ def synth_smpl_motion(
     # Knees only bend one way.
     euler[:, 4, 0] = np.abs(euler[:, 4, 0])
     euler[:, 5, 0] = np.abs(euler[:, 5, 0])
-    poses = Rotation.from_euler("xyz", euler.reshape(-1, 3)).as_rotvec().reshape(n_frames, 72)
+    poses = extrinsic_xyz_to_rotvec(euler).reshape(n_frames, 72)
     radius = rng.uniform(0.4, 0.8)
     orbit = 2 * np.pi * t / (16 * 4 * 60.0 / bpm)  # one lap per 16 measures
     trans = np.stack(
@@ -79,8 +104,7 @@ def smpl_joint_positions(poses: np.ndarray, trans: np.ndarray) -> np.ndarray:
     """World positions (F, 24, 3) in metres of the approximate rest skeleton posed by ``poses``
     (F, 72) and ``trans`` (F, 3); used to draw synthetic keypoints, not a SMPL model."""
     n_frames = poses.shape[0]
-    local = Rotation.from_rotvec(poses.reshape(-1, 3).astype(np.float64)).as_matrix()
-    local = local.reshape(n_frames, 24, 3, 3)
+    local = rodrigues_to_rotmat(poses.reshape(n_frames, 24, 3))
     world_rot = np.empty_like(local)
     positions = np.empty((n_frames, 24, 3))
     for joint, parent in enumerate(SMPL_PARENTS):

@@ -76,6 +76,9 @@ def synth_dance_music(
     n_beats = int(np.ceil(duration_s / beat_s)) + 1
     bass_len = int(0.9 * beat_s * sr)
     note_len = int(0.5 * beat_s * sr)
+    # A song repeats a handful of pitches: render each tone once (same samples, far faster).
+    bass_tones: dict[float, np.ndarray] = {}
+    melody_tones: dict[float, np.ndarray] = {}
     for beat in range(n_beats):
         measure, position = divmod(beat, 4)
         start = int(round(beat * beat_s * sr))
@@ -90,12 +93,16 @@ def synth_dance_music(
         _place(drums, hihat, half, 0.6)
         root = _PROGRESSION[measure % len(_PROGRESSION)]
         bass_freq = 55.0 * 2 ** ((root + (7 if position == 2 else 0)) / 12)
-        _place(bass, _tone(bass_freq, bass_len, sr, 4, 0.35 * beat_s), start, 0.5)
+        if bass_freq not in bass_tones:
+            bass_tones[bass_freq] = _tone(bass_freq, bass_len, sr, 4, 0.35 * beat_s)
+        _place(bass, bass_tones[bass_freq], start, 0.5)
         for onset in (start, half):
             if rng.random() < 0.8:
                 step = _PENTATONIC[rng.integers(len(_PENTATONIC))]
                 freq = 220.0 * 2 ** ((root + step) / 12)
-                _place(melody, _tone(freq, note_len, sr, 3, 0.25 * beat_s), onset, 0.25)
+                if freq not in melody_tones:
+                    melody_tones[freq] = _tone(freq, note_len, sr, 3, 0.25 * beat_s)
+                _place(melody, melody_tones[freq], onset, 0.25)
     mix = 0.55 * drums + 0.35 * bass + 0.3 * melody
     peak = float(np.max(np.abs(mix))) or 1.0
     return (0.9 * mix / peak).astype(np.float32)

@@ -1,0 +1,186 @@
+"""featurize's work units: planned on the driver, run anywhere (this process, a process pool,
+Dask workers), each writing outputs no other unit touches.
+
+Motion units cover whole zarr chunks: unit k writes output rows [frame_start, frame_stop), where
+frame_start is a chunk boundary and frame_stop is the next chunk boundary after the end of a
+whole sequence (or the array's end). Families need whole sequences, so a unit reads every
+sequence that overlaps its rows — the one sequence straddling each unit boundary is computed by
+both neighbours, identically, and each keeps only its own rows. Every chunk is thus written
+exactly once, by one unit, straight into the pre-sized array.
+
+Audio units are tracks. Feature lengths are known only once computed, so each unit saves its
+arrays as .npy under the build area, and the driver packs them in track order afterwards.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from dancedata.compute.audio_features import AudioFeatureConfig
+from dancedata.pipeline.audio_family_base import AudioSettings
+from dancedata.pipeline.motion_families import FAMILIES as MOTION_FAMILIES
+from dancedata.pipeline.motion_families import MotionBatch, MotionSettings
+from dancedata.store.build import BuildArea
+from dancedata.store.reader import VersionReader
+
+
+def open_reader(store: str, version: str, fingerprint: str) -> VersionReader:
+    """One reader per process and version: workers reuse its open arrays across units. The
+    version's fingerprint is part of the key, so a store rebuilt under the same path and
+    version name is never read through a stale reader."""
+    return _cached_reader(store, version, fingerprint)
+
+
+@lru_cache(maxsize=8)
+def _cached_reader(store: str, version: str, fingerprint: str) -> VersionReader:
+    return VersionReader(store, version)
+
+
+# -- motion ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MotionUnit:
+    """Output rows [frame_start, frame_stop) of every motion array, computed from the whole
+    sequences read over [read_start, read_stop); ``bounds`` are those sequences' [start, stop)
+    relative to read_start."""
+
+    frame_start: int
+    frame_stop: int
+    read_start: int
+    read_stop: int
+    bounds: tuple[tuple[int, int], ...]
+
+    @property
+    def id(self) -> str:
+        return f"{self.frame_start:012d}-{self.frame_stop:012d}"
+
+
+@dataclass(frozen=True)
+class MotionJob:
+    """What every motion unit shares: where to read and write, and what to compute."""
+
+    store: str
+    parent: str
+    parent_fingerprint: str
+    build: BuildArea
+    families: tuple[str, ...]
+    settings: MotionSettings
+    needed: tuple[str, ...]  # base arrays read, e.g. ("axis_angle",)
+
+
+def plan_motion_units(
+    starts: np.ndarray, stops: np.ndarray, chunk_frames: int, target_frames: int
+) -> list[MotionUnit]:
+    """Chunk-aligned units of about ``target_frames`` frames over contiguous sequences
+    [starts[i], stops[i]) (frames). Each unit ends on the chunk boundary at or after the end
+    of the sequence holding its ``target_frames``-th frame, so a long sequence lies in one
+    unit and no sequence is read by more than two units."""
+    starts = np.asarray(starts, dtype=np.int64)
+    stops = np.asarray(stops, dtype=np.int64)
+    total = int(stops[-1]) if len(stops) else 0
+    units: list[MotionUnit] = []
+    begin = 0
+    while begin < total:
+        probe = min(begin + max(target_frames, 1), total) - 1
+        holder = int(np.searchsorted(stops, probe, side="right"))
+        end = min(total, math.ceil(int(stops[holder]) / chunk_frames) * chunk_frames)
+        first = int(np.searchsorted(stops, begin, side="right"))
+        last = int(np.searchsorted(stops, end - 1, side="right"))
+        read_start, read_stop = int(starts[first]), int(stops[last])
+        bounds = tuple(
+            (int(starts[i]) - read_start, int(stops[i]) - read_start)
+            for i in range(first, last + 1)
+        )
+        units.append(MotionUnit(begin, end, read_start, read_stop, bounds))
+        begin = end
+    return units
+
+
+def run_motion_unit(job: MotionJob, unit: MotionUnit) -> dict[str, Any]:
+    """Compute every family over the unit's sequences and write the unit's rows (whole
+    chunks) into the pre-sized arrays of the version being built."""
+    reader = open_reader(job.store, job.parent, job.parent_fingerprint)
+    batch = MotionBatch(
+        arrays={
+            name: np.asarray(
+                reader.array(f"motion/{name}")[unit.read_start : unit.read_stop],
+                dtype=np.float64,
+            )
+            for name in job.needed
+        },
+        bounds=np.asarray(unit.bounds, dtype=np.int64).reshape(-1, 2),
+        attrs=reader.group_attrs("motion"),
+    )
+    lo, hi = unit.frame_start - unit.read_start, unit.frame_stop - unit.read_start
+    for name in job.families:
+        for path, values in MOTION_FAMILIES[name].compute(batch, job.settings).items():
+            target = job.build.open_array(f"motion/{path}")
+            target[unit.frame_start : unit.frame_stop] = np.asarray(values[lo:hi], target.dtype)
+    return {"frames": hi - lo, "read_frames": unit.read_stop - unit.read_start}
+
+
+# -- audio -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class AudioUnit:
+    """One music track: its row in the music table and its file."""
+
+    index: int
+    music_id: str
+    path: str
+    bpm: float | None
+    sha256: str | None = None  # of the music file: the feature cache key
+
+    @property
+    def id(self) -> str:
+        return f"{self.index:05d}-{self.music_id}"
+
+
+@dataclass(frozen=True)
+class AudioJob:
+    build: BuildArea
+    families: tuple[str, ...]
+    cfg: AudioFeatureConfig
+    outputs: tuple[str, ...]  # array paths relative to the audio group
+    settings: AudioSettings = AudioSettings()  # stem backend, NMFD, study-family settings
+    cache_dir: str | None = None  # feature cache folder (dancedata.feature_cache); None: off
+
+
+def audio_output(unit: AudioUnit, path: str) -> str:
+    """Build-area file of one array of one track."""
+    return f"out/audio/{unit.id}/{path.replace('/', '__')}.npy"
+
+
+def run_audio_unit(job: AudioJob, unit: AudioUnit) -> dict[str, Any]:
+    """Every family's arrays for the track (from the feature cache, or computed on the track
+    decoded once at cfg.sr; see :mod:`dancedata.pipeline.audio_track`), trimmed to a common
+    frame count and saved for the driver to pack."""
+    from dancedata.pipeline.audio_track import compute_track_features
+
+    features, stats = compute_track_features(
+        job.families,
+        job.settings,
+        job.cfg,
+        unit.path,
+        unit.bpm,
+        audio_sha256=unit.sha256,
+        music_id=unit.music_id,
+        cache_dir=job.cache_dir,
+    )
+    n = min(features[path].shape[0] for path in job.outputs)
+    for path in job.outputs:
+        job.build.save_array(audio_output(unit, path), np.ascontiguousarray(features[path][:n]))
+    return {"frames": int(n), **stats}
+
+
+def warm_audio(cfg: AudioFeatureConfig | None = None) -> None:
+    """Run the FACT recipe on two seconds of noise: imports librosa and compiles (or loads)
+    its numba kernels once in this process, so no track pays for it."""
+    from dancedata.compute.audio_features import fact_features
+
+    cfg = cfg or AudioFeatureConfig()
+    rng = np.random.default_rng(0)
+    fact_features(rng.standard_normal(2 * cfg.sr).astype(np.float32) * 0.1, 120.0, cfg)

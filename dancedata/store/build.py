@@ -1,0 +1,201 @@
+"""The scratch area of a version being built: what workers write and what a resumed run finds.
+
+A :class:`BuildArea` names the temporary version directory (local path or remote URL) and is
+plain data, so it travels to worker processes and Dask workers. Inside it, ``.build/`` holds
+build state that never reaches a committed version:
+
+    .build/prepared.json              the version's arrays exist, pre-sized (written once)
+    .build/units/<kind>/<unit>.json   unit finished: its outputs are complete and durable
+    .build/out/<kind>/<unit>/*.npy    per-unit outputs that the driver packs afterwards
+
+Every marker is written after the outputs it vouches for, by write-then-rename locally and by
+a single PUT on object stores (both atomic), so a marker never names a partial output.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dancedata.store.fs import is_remote, local_path, remote_fs, zarr_store
+from dancedata.store.layout import ZARR_DIR, write_json_atomic
+
+BUILD_DIR = ".build"
+PREPARED_FILE = "prepared.json"
+
+
+@dataclass(frozen=True)
+class BuildArea:
+    """The temporary directory (or prefix) of one version in the making."""
+
+    root: str
+
+    @property
+    def remote(self) -> bool:
+        return is_remote(self.root)
+
+    def _local(self, rel: str) -> Path:
+        return local_path(self.root) / BUILD_DIR / rel
+
+    def _remote(self, rel: str) -> tuple[Any, str]:
+        fs, base = remote_fs(self.root)
+        return fs, f"{base}/{BUILD_DIR}/{rel}"
+
+    # -- zarr ----------------------------------------------------------------------------------
+    def zarr_location(self) -> str:
+        return f"{self.root.rstrip('/')}/{ZARR_DIR}"
+
+    def open_array(self, name: str) -> Any:
+        """The version's array ``name`` (e.g. ``motion/rotmat``), open for writing regions."""
+        return _open_array(self.zarr_location(), name)
+
+    # -- small JSON records --------------------------------------------------------------------
+    def write_json(self, rel: str, value: Any) -> None:
+        """Write ``.build/<rel>`` atomically (rename locally, one PUT remotely)."""
+        if self.remote:
+            fs, path = self._remote(rel)
+            fs.pipe_file(path, json.dumps(value, sort_keys=True).encode())
+            return
+        path = self._local(rel)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(path, value)
+
+    def read_json(self, rel: str) -> Any | None:
+        """``.build/<rel>`` parsed, or None when absent or unreadable (a torn write)."""
+        try:
+            if self.remote:
+                fs, path = self._remote(rel)
+                return json.loads(fs.cat_file(path))
+            return json.loads(self._local(rel).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+
+    def read_all_json(self, rel_dir: str) -> dict[str, Any]:
+        """Every ``.build/<rel_dir>/<name>.json``, keyed by name (unreadable ones left out)."""
+        names: list[str] = []
+        if self.remote:
+            fs, path = self._remote(rel_dir)
+            fs.invalidate_cache()
+            if fs.exists(path):
+                names = [p.rsplit("/", 1)[-1] for p in fs.ls(path, detail=False)]
+        else:
+            folder = self._local(rel_dir)
+            if folder.is_dir():
+                names = [p.name for p in folder.iterdir()]
+        found: dict[str, Any] = {}
+        for name in sorted(names):
+            if name.endswith(".json") and not name.startswith("."):
+                value = self.read_json(f"{rel_dir}/{name}")
+                if value is not None:
+                    found[name[: -len(".json")]] = value
+        return found
+
+    # -- array outputs -------------------------------------------------------------------------
+    def save_array(self, rel: str, values: np.ndarray) -> None:
+        """Write ``.build/<rel>`` as .npy (the unit's marker, written later, vouches for it)."""
+        if self.remote:
+            fs, path = self._remote(rel)
+            buffer = io.BytesIO()
+            np.save(buffer, values, allow_pickle=False)
+            fs.pipe_file(path, buffer.getvalue())
+            return
+        path = self._local(rel)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".tmp-{path.name}.{os.getpid()}")
+        with open(tmp, "wb") as handle:
+            np.save(handle, values, allow_pickle=False)
+        os.replace(tmp, path)
+
+    def load_array(self, rel: str) -> np.ndarray:
+        if self.remote:
+            fs, path = self._remote(rel)
+            return np.load(io.BytesIO(fs.cat_file(path)), allow_pickle=False)
+        return np.load(self._local(rel), allow_pickle=False)
+
+    def save_blob(self, rel: str, arrays: dict[str, np.ndarray]) -> dict[str, list[Any]]:
+        """Write several arrays back to back as one raw file ``.build/<rel>`` (no compression,
+        no zip, no CRC: this is scratch data) and return its index, {key: [offset, dtype,
+        shape]}, for the unit's marker. Numeric and bool dtypes only (never objects)."""
+        index: dict[str, list[Any]] = {}
+        parts: list[np.ndarray] = []
+        offset = 0
+        for key, value in arrays.items():
+            value = np.asarray(value)
+            if not value.flags.c_contiguous:  # (ascontiguousarray would make 0-d arrays 1-d)
+                value = value.copy(order="C")
+            if value.dtype.hasobject:
+                raise TypeError(f"{key}: object arrays cannot be saved")
+            index[key] = [offset, value.dtype.str, list(value.shape)]
+            parts.append(value)
+            offset += value.nbytes + (-value.nbytes) % 64  # 64-byte aligned starts
+        if self.remote:
+            fs, path = self._remote(rel)
+            fs.pipe_file(path, b"".join(b for p in parts for b in _chunks(p)))
+            return index
+        path = self._local(rel)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".tmp-{path.name}.{os.getpid()}")
+        with open(tmp, "wb") as handle:
+            for part in parts:
+                for piece in _chunks(part):
+                    handle.write(piece)
+        os.replace(tmp, path)
+        return index
+
+    def load_blob(self, rel: str, index: dict[str, list[Any]]) -> dict[str, np.ndarray]:
+        """The arrays of a blob written by :meth:`save_blob`; local files are memory-mapped
+        (read-only views, no copy), remote ones read in one request."""
+        if not index:
+            return {}
+        if self.remote:
+            fs, path = self._remote(rel)
+            raw: np.ndarray = np.frombuffer(fs.cat_file(path), dtype=np.uint8)
+        else:
+            raw = np.memmap(self._local(rel), dtype=np.uint8, mode="r")
+        out: dict[str, np.ndarray] = {}
+        for key, (offset, dtype, shape) in index.items():
+            dt = np.dtype(dtype)
+            count = int(np.prod(shape, dtype=np.int64))
+            out[key] = raw[offset : offset + count * dt.itemsize].view(dt).reshape(shape)
+        return out
+
+    def remove(self, rel: str) -> None:
+        """Delete ``.build/<rel>`` (file or folder) if present."""
+        if self.remote:
+            fs, path = self._remote(rel)
+            if fs.exists(path):
+                fs.rm(path, recursive=True)
+            return
+        import shutil
+
+        path = self._local(rel)
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        elif path.exists():
+            path.unlink()
+
+
+@lru_cache(maxsize=64)
+def _open_array(location: str, name: str) -> Any:
+    """One open array per process and name: opening reads its metadata, so do it once."""
+    import zarr
+
+    return zarr.open_array(store=zarr_store(location), path=name, mode="r+", zarr_format=3)
+
+
+def _chunks(values: np.ndarray) -> list[bytes | memoryview]:
+    """The array's bytes (no copy), then zeros up to a multiple of 64."""
+    pieces: list[bytes | memoryview] = []
+    if values.nbytes:
+        pieces.append(memoryview(values.reshape(-1)).cast("B"))
+    pad = (-values.nbytes) % 64
+    if pad:
+        pieces.append(bytes(pad))
+    return pieces

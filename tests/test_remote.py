@@ -1,0 +1,159 @@
+"""Stores on S3 through fsspec, against a real S3-compatible server (moto, server mode) that
+the test starts on 127.0.0.1: write a store with the CLI, read it back, and check what the
+commit protocol promises (store.json is the commit point, one writer at a time)."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+
+import numpy as np
+import pytest
+
+import dancedata
+from dancedata.errors import StoreError
+from dancedata.ingest.aist import AistIngestOptions, ingest_aist
+from dancedata.pipeline.featurize import FeaturizeOptions, featurize
+from dancedata.pipeline.segment import SegmentOptions, segment
+from dancedata.store.layout import StoreLayout
+from dancedata.store.validate import validate_store
+from dancedata.store.writer import VersionWriter
+from dancedata.synth.aist import synth_aist
+from tests.helpers import run_cli
+
+moto_server = pytest.importorskip("moto.server")
+s3fs = pytest.importorskip("s3fs")
+
+BUCKET = "dance"
+
+
+@pytest.fixture(scope="module")
+def s3_env():
+    """A moto S3 server on loopback, and the environment that points clients at it."""
+    logging.getLogger("werkzeug").setLevel(logging.ERROR)
+    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server.start()
+    host, port = server.get_host_and_port()
+    env = {
+        "AWS_ACCESS_KEY_ID": "testing",
+        "AWS_SECRET_ACCESS_KEY": "testing",
+        "AWS_DEFAULT_REGION": "us-east-1",
+        "AWS_ENDPOINT_URL": f"http://{host}:{port}",
+    }
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    s3fs.S3FileSystem.clear_instance_cache()
+    s3fs.S3FileSystem().mkdir(BUCKET)
+    try:
+        yield env
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+        s3fs.S3FileSystem.clear_instance_cache()
+        server.stop()
+
+
+@pytest.fixture(scope="module")
+def stores(s3_env, tmp_path_factory):
+    """The same raw data through the CLI into S3 and through the library into a local dir."""
+    root = tmp_path_factory.mktemp("remote")
+    raw, local = root / "raw", root / "local"
+    synth_aist(raw, n_sequences=3, seed=4)
+    url = f"s3://{BUCKET}/stores/demo"
+    env = {**s3_env, "DANCEDATA_CACHE": str(root / "cache-remote")}  # compute, never load
+    run_cli("ingest", "aist", str(raw), "--store", url, "-q", env=env)
+    run_cli("featurize", url, "-q", "--workers", "2", env=env)
+    run_cli("segment", url, "-q", env=env)
+    ingest_aist(local, raw, AistIngestOptions())
+    featurize(local, FeaturizeOptions(cache_dir=str(root / "cache-local")))
+    segment(local, SegmentOptions())
+    return {"url": url, "local": local, "raw": raw}
+
+
+def test_remote_store_holds_the_same_data_as_a_local_one(stores):
+    remote, local = dancedata.open_store(stores["url"]), dancedata.open_store(stores["local"])
+    assert remote.version == "v3"
+    assert remote.array_names() == local.array_names()
+    for name in local.array_names():
+        assert np.array_equal(remote.zarr(name)[...], local.zarr(name)[...], equal_nan=True), name
+    for table in ("sequences", "measures", "splits"):
+        assert (
+            remote.table(table)
+            .drop_columns(["path"] if table == "sequences" else [])
+            .equals(local.table(table).drop_columns(["path"] if table == "sequences" else []))
+        )
+    seq = local.seq_ids()[0]
+    assert np.array_equal(remote.view(seq, "fact_audio_35"), local.view(seq, "fact_audio_35"))
+
+
+def test_remote_store_is_valid_and_listed(stores, s3_env):
+    assert validate_store(stores["url"]) == []
+    out = run_cli("versions", stores["url"], "--json", env=s3_env).stdout
+    assert [row["version"] for row in json.loads(out)] == ["v1", "v2", "v3"]
+    info = json.loads(run_cli("info", stores["url"], "--json", env=s3_env).stdout)
+    assert info["version"] == "v3" and info["sequences"] == 3
+    fs = s3fs.S3FileSystem()
+    assert not fs.glob(f"{BUCKET}/stores/demo/versions/.tmp-*")  # temporaries removed
+    assert not fs.exists(f"{BUCKET}/stores/demo/.lock")
+
+
+def test_a_version_copied_but_not_pointed_to_is_invisible_and_replaced(stores):
+    """A writer that died after copying v4 but before rewriting store.json committed nothing."""
+    fs = s3fs.S3FileSystem()
+    prefix = f"{BUCKET}/stores/demo/versions"
+    fs.copy(f"{prefix}/v3", f"{prefix}/v4", recursive=True)  # manifest and all
+    layout = StoreLayout(stores["url"])
+    assert layout.committed_versions() == ["v1", "v2", "v3"] and layout.latest() == "v3"
+    assert dancedata.open_store(stores["url"]).version == "v3"
+    # The next writer takes the name v4 over: it is rebuilt, then committed.
+    result = segment(stores["url"], SegmentOptions(beats_per_measure=2))
+    assert result.version == "v4" and layout.latest() == "v4"
+    assert layout.read_manifest("v4")["config"]["beats_per_measure"] == 2
+    two_beat = dancedata.open_store(stores["url"]).measures.num_rows
+    assert two_beat > dancedata.open_store(stores["url"], "v3").measures.num_rows
+
+
+def test_one_writer_at_a_time(stores):
+    common = {"command": "test", "config": {}, "fingerprint": "f" * 64}
+    with (
+        VersionWriter(stores["url"], **common),
+        pytest.raises(StoreError, match="locked by another writer"),
+        VersionWriter(stores["url"], **common),
+    ):
+        pass
+    with VersionWriter(stores["url"], **common):  # released: free again
+        pass
+
+
+def test_featurize_on_s3_resumes_after_a_crash(stores, monkeypatch, tmp_path):
+    import dancedata.pipeline.featurize as featurize_module
+
+    url = f"s3://{BUCKET}/stores/resume"
+    ingest_aist(url, stores["raw"], AistIngestOptions())
+    real = featurize_module.run_audio_unit
+    calls = {"n": 0}
+
+    def crash_on_second_track(job, unit):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise OSError("connection reset")
+        return real(job, unit)
+
+    monkeypatch.setattr(featurize_module, "run_audio_unit", crash_on_second_track)
+    monkeypatch.setenv("DANCEDATA_CACHE", str(tmp_path / "feature-cache"))
+    with pytest.raises(OSError):
+        featurize(url, FeaturizeOptions())
+    layout = StoreLayout(url)
+    assert layout.committed_versions() == ["v1"] and len(layout.temp_dirs()) == 1
+    monkeypatch.setattr(featurize_module, "run_audio_unit", real)
+    result = featurize(url, FeaturizeOptions())
+    assert result.counts["resumed_units"] == 1  # the first track (tracks run first)
+    assert layout.temp_dirs() == []
+    local = dancedata.open_store(stores["local"], "v2")
+    remote = dancedata.open_store(url)
+    for name in local.array_names():
+        assert np.array_equal(remote.zarr(name)[...], local.zarr(name)[...], equal_nan=True), name
