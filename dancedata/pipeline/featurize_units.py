@@ -174,13 +174,3 @@ def run_audio_unit(job: AudioJob, unit: AudioUnit) -> dict[str, Any]:
     for path in job.outputs:
         job.build.save_array(audio_output(unit, path), np.ascontiguousarray(features[path][:n]))
     return {"frames": int(n), **stats}
-
-
-def warm_audio(cfg: AudioFeatureConfig | None = None) -> None:
-    """Run the FACT recipe on two seconds of noise: imports librosa and compiles (or loads)
-    its numba kernels once in this process, so no track pays for it."""
-    from dancedata.compute.audio_features import fact_features
-
-    cfg = cfg or AudioFeatureConfig()
-    rng = np.random.default_rng(0)
-    fact_features(rng.standard_normal(2 * cfg.sr).astype(np.float32) * 0.1, 120.0, cfg)
