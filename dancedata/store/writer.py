@@ -273,7 +273,6 @@ class VersionWriter:
         """Consolidate metadata, write manifest.json, rename into place, move store.json."""
         if self.committed_as is not None:
             return self.committed_as
-        shutil.rmtree(self.path / BUILD_DIR, ignore_errors=True)
         zarr_path = self.path / ZARR_DIR
         if zarr_path.exists():
             import warnings
@@ -291,9 +290,17 @@ class VersionWriter:
         # integrity (issue 8): checksums.json of every data file, written just before the manifest
         record_checksums(self.path, self.layout.version_dir(self.parent) if self.parent else None)
         write_json_atomic(self.path / MANIFEST_FILE, manifest)
+        # The finished units' build state stays until the last moment, so a kill anywhere
+        # before the commit rename still resumes them; it leaves by one rename of its own.
+        spent = None
+        if (self.path / BUILD_DIR).exists():
+            spent = self.layout.versions_dir / f"{TEMP_PREFIX}spent-{secrets.token_hex(6)}"
+            os.rename(self.path / BUILD_DIR, spent)
         final = self.layout.version_dir(name)
         os.rename(self.path, final)
         fsync_dir(self.layout.versions_dir)
+        if spent is not None:
+            shutil.rmtree(spent, ignore_errors=True)
         self.committed_as = name
         self.tmp = final
         self.layout.write_pointer(name)
