@@ -20,7 +20,7 @@ Arrays and attrs are described in docs/STORE.md ("BVH stores").
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -31,9 +31,10 @@ from dancedata.ingest.bvh_inputs import BvhInput, resolve_inputs
 from dancedata.ingest.bvh_motion import BvhMotion, BvhSettings, process_bvh
 from dancedata.ingest.bvh_units import parse_units
 from dancedata.ingest.result import CommandResult
+from dancedata.ingest.run_state import IngestRun
 from dancedata.io.bvh_attrs import is_bvh_skeleton
 from dancedata.progress import progress
-from dancedata.store.checksums import describe_input, fingerprint
+from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
@@ -112,24 +113,9 @@ class BvhIngestOptions:
 # ----------------------------------------------------------------------------- the run
 
 
-@dataclass
-class _Run:
+@dataclass(kw_only=True)
+class _Run(IngestRun):
     options: BvhIngestOptions
-    skipped: list[dict[str, str]] = field(default_factory=list)
-    described: dict[str, dict[str, Any]] = field(default_factory=dict)
-
-    def fail_or_skip(self, exc: DancedataError, path: Path | str) -> None:
-        if self.options.on_error != "skip":
-            raise exc
-        self.skipped.append({"path": str(exc.path or path), "error": exc.problem})
-
-    def sha(self, path: Path) -> str:
-        key = str(path)
-        if key not in self.described:
-            if not path.is_file():
-                raise InputError("no such file", path)
-            self.described[key] = describe_input(path)
-        return self.described[key]["sha256"]
 
 
 def _checked_inputs(run: _Run, inputs: list[BvhInput]) -> tuple[list[BvhInput], list[str]]:
@@ -401,7 +387,7 @@ def ingest_bvh(
         genre=options.genre,
         manifest=options.manifest,
     )
-    run = _Run(options)
+    run = _Run(on_error=options.on_error, options=options)
     inputs, keys = _checked_inputs(run, inputs)
     layout = StoreLayout(store)
     config = options.config()

@@ -27,6 +27,7 @@ from typing import Any
 from dancedata._version import __version__
 from dancedata.errors import InputError
 from dancedata.ingest.result import CommandResult
+from dancedata.ingest.run_state import IngestRun
 from dancedata.ingest.video_inputs import VideoInputs, check_unique_stems, resolve_inputs
 from dancedata.ingest.video_music import MusicTrack, bpm_method, music_from_file, music_from_video
 from dancedata.ingest.video_poses import MASK_CODES, PoseSettings, VideoPoses, process_video
@@ -103,24 +104,11 @@ class VideoIngestOptions:
 # ----------------------------------------------------------------------------- inventory
 
 
-@dataclass
-class _Run:
+@dataclass(kw_only=True)
+class _Run(IngestRun):
     """What one ingest gathers before writing."""
 
     options: VideoIngestOptions
-    skipped: list[dict[str, str]] = field(default_factory=list)
-    described: dict[str, dict[str, Any]] = field(default_factory=dict)
-
-    def fail_or_skip(self, exc: InputError, path: Path | str) -> None:
-        if self.options.on_error != "skip":
-            raise exc
-        self.skipped.append({"path": str(exc.path or path), "error": exc.problem})
-
-    def sha(self, path: Path) -> str:
-        key = str(path)
-        if key not in self.described:
-            self.described[key] = describe_input(path)
-        return self.described[key]["sha256"]
 
     def pose_digest(self, inputs: VideoInputs) -> str:
         """One manifest input for a video's pose files: the folder (and file prefix), their
@@ -408,7 +396,7 @@ def ingest_video(
     if not paths:
         raise InputError("no video given")
     check_unique_stems(paths)
-    run = _Run(options)
+    run = _Run(on_error=options.on_error, options=options)
     found = _inventory(run, paths)
     keys = [_sequence_key(run, inputs) for inputs in progress(found, "checksums", unit="video")]
     config = options.config()
