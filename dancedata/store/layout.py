@@ -71,6 +71,24 @@ def fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
+def parse_pointer(text: str | bytes, where: str | Path) -> dict[str, Any]:
+    """Parse and check the text of a store.json (local or remote); StoreError naming ``where``
+    when it is not JSON, not ours, or of a format_version this dancedata does not read."""
+    try:
+        pointer = json.loads(text)
+    except ValueError as exc:
+        raise StoreError(f"unreadable store.json: {exc}", where) from None
+    if not isinstance(pointer, dict) or pointer.get("format") != FORMAT_NAME:
+        raise StoreError("store.json is not a dancedata store pointer", where)
+    if pointer.get("format_version") != FORMAT_VERSION:
+        raise StoreError(
+            f"format_version {pointer.get('format_version')} is not supported "
+            f"(this dancedata reads {FORMAT_VERSION})",
+            where,
+        )
+    return pointer
+
+
 class StoreLayout:
     """Paths and pointer of one local store directory. Knows nothing about arrays or tables."""
 
@@ -105,18 +123,10 @@ class StoreLayout:
         if not self.store_file.is_file():
             raise StoreError("not a dancedata store (no store.json)", self.root)
         try:
-            pointer = json.loads(self.store_file.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as exc:
+            text = self.store_file.read_text(encoding="utf-8")
+        except OSError as exc:
             raise StoreError(f"unreadable store.json: {exc}", self.store_file) from None
-        if not isinstance(pointer, dict) or pointer.get("format") != FORMAT_NAME:
-            raise StoreError("store.json is not a dancedata store pointer", self.store_file)
-        if pointer.get("format_version") != FORMAT_VERSION:
-            raise StoreError(
-                f"format_version {pointer.get('format_version')} is not supported "
-                f"(this dancedata reads {FORMAT_VERSION})",
-                self.store_file,
-            )
-        return pointer
+        return parse_pointer(text, self.store_file)
 
     def write_pointer(self, latest: str | None) -> None:
         self.root.mkdir(parents=True, exist_ok=True)

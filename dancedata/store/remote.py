@@ -47,6 +47,7 @@ from dancedata.store.layout import (
     VERSIONS_DIR,
     ZARR_DIR,
     StoreLayout,
+    parse_pointer,
     version_number,
 )
 from dancedata.store.lock import LOCK_FILE, describe_holder, holder_is_stale, this_holder
@@ -95,19 +96,7 @@ class RemoteLayout(StoreLayout):
             text = self.fs.cat_file(self.key(STORE_FILE))
         except FileNotFoundError:
             raise StoreError("not a dancedata store (no store.json)", self.url) from None
-        try:
-            pointer = json.loads(text)
-        except ValueError as exc:
-            raise StoreError(f"unreadable store.json: {exc}", self.store_file) from None
-        if not isinstance(pointer, dict) or pointer.get("format") != FORMAT_NAME:
-            raise StoreError("store.json is not a dancedata store pointer", self.store_file)
-        if pointer.get("format_version") != FORMAT_VERSION:
-            raise StoreError(
-                f"format_version {pointer.get('format_version')} is not supported "
-                f"(this dancedata reads {FORMAT_VERSION})",
-                self.store_file,
-            )
-        return pointer
+        return parse_pointer(text, self.store_file)
 
     def write_pointer(self, latest: str | None) -> None:
         """One PUT: atomic, and the commit point of a remote version."""
