@@ -8,7 +8,9 @@ from dancedata.cli import (  # noqa: F401
     ingest_bvh,
     ingest_video,
     inspect,
+    plot,
     process,
+    report,
     synth,
     unlock,
 )

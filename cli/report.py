@@ -1,0 +1,33 @@
+"""``dancedata report``: the store's dataset card as one self-contained HTML page. Needs the
+``viz`` extra."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from dancedata.cli.common import VersionOpt
+from dancedata.cli.main import app
+
+
+@app.command()
+def report(
+    store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
+    out: Annotated[Path, typer.Argument(help="HTML page to write.")],
+    gallery: Annotated[
+        int, typer.Option(min=0, help="Sequences drawn in the plot gallery (0 for none).")
+    ] = 3,
+    version: VersionOpt = None,
+) -> None:
+    """Write OUT.html: version lineage (commands, fingerprints), counts per split, genre,
+    tempo, dancer and source, durations, skipped inputs, feature distributions with NaN and
+    out-of-range checks, and a small gallery of sequence plots. No network: CSS and images are
+    inline."""
+    from dancedata.viz.extras import require
+
+    require("matplotlib", "dancedata report")
+    from dancedata.viz.report import build_report, write_report
+
+    html = build_report(store, version, gallery=gallery)
+    typer.echo(f"report: wrote {write_report(html, out)} ({len(html.encode()) / 1e6:.2f} MB)")
