@@ -106,7 +106,8 @@ def ingest_video_cmd(
         Path | None,
         typer.Option(
             help="Music file (shared by every video) or folder of <stem>.wav/.flac/.ogg/.mp3. "
-            "Default: the video's audio track, which needs ffmpeg. It starts with the video."
+            "Default: the video's audio track, read with PyAV (the 'viz' extra). It starts with "
+            "the video."
         ),
     ] = None,
     no_music: Annotated[bool, typer.Option(help="Store no music (ignore audio tracks).")] = False,

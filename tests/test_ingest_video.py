@@ -20,7 +20,7 @@ from dancedata.ingest.video import VideoIngestOptions, ingest_video
 from dancedata.ingest.video_poses import PoseSettings
 from dancedata.io.openpose import BODY_25, COCO_18
 from dancedata.store.layout import StoreLayout
-from tests.helpers import run_cli
+from tests.helpers import importorskip_unless_ci, run_cli
 
 RAGA = Path("openpose")
 X0, SPEED = 100.0, 200.0  # generated poses: joint x = X0 + SPEED · t + 3 j pixels, t in seconds
@@ -221,8 +221,11 @@ def test_raga_3people_drift_refused_then_recorded(real_data: Path, tmp_path: Pat
 
 
 @pytest.mark.real_data
-def test_audio_track_without_ffmpeg_asks_for_music(real_data: Path, tmp_path: Path) -> None:
+def test_audio_track_without_pyav_asks_for_the_extra(real_data: Path, tmp_path: Path) -> None:
     folder = real_data / RAGA / "raga_example_3people"  # this clip has an audio track
+    hidden = tmp_path / "no_av"  # a package named av that fails to import: PyAV "not installed"
+    (hidden / "av").mkdir(parents=True)
+    (hidden / "av" / "__init__.py").write_text("raise ImportError('PyAV hidden by the test')\n")
     store = tmp_path / "store"
     proc = run_cli(
         "ingest",
@@ -235,11 +238,40 @@ def test_audio_track_without_ffmpeg_asks_for_music(real_data: Path, tmp_path: Pa
         "--allow-drift",
         "-q",
         check=False,
-        env={"PATH": str(tmp_path)},  # no ffmpeg on this PATH
+        env={"PYTHONPATH": str(hidden), "PATH": str(tmp_path)},  # no PyAV, no ffmpeg
     )
     line = one_line_error(proc)
-    assert "short_video.mp4" in line and "ffmpeg" in line and "--music FILE" in line
+    assert "short_video.mp4" in line and "dancedata[viz]" in line and "--music FILE" in line
     assert not store.exists()
+
+
+def test_video_audio_track_read_with_pyav(tmp_path: Path) -> None:
+    """A video whose own audio track (written with PyAV, lossless PCM in MOV) is the music, on a
+    PATH without ffmpeg: ingest describes the very samples written (rate, length, channels) and
+    estimates from them the tempo librosa finds on the original samples."""
+    import librosa
+
+    from tests.av_media import write_video_with_audio
+
+    importorskip_unless_ci("av")
+
+    sr, seconds, fps = 22050, 6.0, 30.0
+    clicks, _ = sf.read(write_clicks(tmp_path / "song.wav", 120.0, seconds, sr), dtype="float32")
+    stereo = np.stack([clicks, 0.5 * clicks])
+    stereo = (np.clip(np.round(stereo * 32768.0), -32768, 32767) / 32768.0).astype(np.float32)
+    video = write_video_with_audio(tmp_path / "clip.mov", fps, 180, stereo, sr, "pcm_s16le")
+    poses = write_openpose(tmp_path / "clip_json", fps, range(180))
+    store = tmp_path / "store"
+    args = ["ingest", "video", str(video), "--poses", str(poses), "--store", str(store), "-q"]
+    run_cli(*args, env={"PATH": str(tmp_path)})  # no ffmpeg program on PATH
+    ds = dancedata.open_store(store)
+    row = ds.music.to_pylist()[0]
+    assert row["music_source"] == "video_audio" and Path(row["path"]).name == "clip.mov"
+    assert (row["sr"], row["n_samples"], row["channels"]) == (sr, stereo.shape[1], 2)
+    assert row["duration_s"] == pytest.approx(seconds)
+    tempo, _ = librosa.beat.beat_track(y=stereo.mean(axis=0), sr=sr, hop_length=512)
+    assert row["bpm_estimated"] and row["bpm"] == pytest.approx(float(np.atleast_1d(tempo)[0]))
+    assert row["bpm"] == pytest.approx(120.0, rel=0.05)
 
 
 # ----------------------------------------------------------------------------- generated videos

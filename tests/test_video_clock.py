@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import shutil
 import struct
+import sys
 from pathlib import Path
 
 import cv2
@@ -15,9 +15,9 @@ from dancedata.io.video_clock import (
     audio_track_present,
     count_frames,
     extract_audio,
-    ffmpeg_path,
     read_video_clock,
 )
+from tests.helpers import importorskip_unless_ci
 
 RAGA = Path("openpose")
 
@@ -195,21 +195,49 @@ def test_video_without_audio_track_says_use_music(tmp_path: Path) -> None:
 
 
 @pytest.mark.real_data
-def test_missing_ffmpeg_is_reported(real_data: Path, tmp_path: Path, monkeypatch) -> None:
-    monkeypatch.setenv("PATH", str(tmp_path))  # a PATH with no ffmpeg on it
-    assert ffmpeg_path() is None
+def test_missing_pyav_is_reported(real_data: Path, monkeypatch) -> None:
+    monkeypatch.setitem(sys.modules, "av", None)  # `import av` raises ImportError
     path = real_data / RAGA / "raga_example_3people" / "short_video.mp4"
-    with pytest.raises(InputError, match="needs the ffmpeg program.*--music") as info:
+    with pytest.raises(InputError, match=r"needs PyAV.*dancedata\[viz\].*--music") as info:
         extract_audio(path)
     assert str(info.value).startswith(str(path))
 
 
 @pytest.mark.real_data
-@pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="ffmpeg is not installed")
-def test_extract_audio_with_ffmpeg(real_data: Path) -> None:
-    samples, sr = extract_audio(
-        real_data / RAGA / "raga_example_3people" / "short_video.mp4", sr=22050
-    )
+def test_extract_audio_with_pyav(real_data: Path) -> None:
+    importorskip_unless_ci("av")
+    path = real_data / RAGA / "raga_example_3people" / "short_video.mp4"
+    samples, sr = extract_audio(path, sr=22050)
     assert sr == 22050 and samples.ndim == 1
     assert samples.size / sr == pytest.approx(10.0, abs=0.1)
     assert np.abs(samples).max() > 0.01
+    stereo, native = extract_audio(path, mono=False)
+    assert native == 48000 and stereo.shape[0] == 2
+    assert stereo.shape[1] / native == pytest.approx(10.0, abs=0.1)
+
+
+def test_pyav_decodes_the_samples_written(tmp_path: Path) -> None:
+    """A lossless (PCM) track written with PyAV is read back sample for sample; an AAC track
+    keeps the tone (lossy: compared by correlation after the codec's delay is trimmed)."""
+    importorskip_unless_ci("av")
+    from tests.av_media import tone, write_video_with_audio
+
+    audio = tone(1.5, 44100)
+    exact = np.clip(np.round(audio * 32768.0), -32768, 32767) / 32768.0
+    mov = write_video_with_audio(tmp_path / "clip.mov", 25.0, 30, audio, 44100, "pcm_s16le")
+    assert audio_track_present(mov) is True
+    samples, sr = extract_audio(mov, mono=False)
+    assert sr == 44100 and samples.shape == audio.shape
+    np.testing.assert_array_equal(samples, exact.astype(np.float32))
+    mono, _ = extract_audio(mov)
+    np.testing.assert_allclose(mono, exact.mean(axis=0), atol=1e-7)
+
+    clean = tone(1.5, 44100)
+    mp4 = write_video_with_audio(tmp_path / "clip.mp4", 25.0, 30, clean, 44100, "aac")
+    lossy, sr = extract_audio(mp4, mono=False)
+    assert sr == 44100 and lossy.shape[0] == 2
+    assert abs(lossy.shape[1] - clean.shape[1]) <= 2048  # AAC frames of 1024 samples
+    n = min(lossy.shape[1], clean.shape[1])
+    for ch in range(2):
+        corr = np.corrcoef(lossy[ch, 2048 : n - 2048], clean[ch, 2048 : n - 2048])[0, 1]
+        assert corr > 0.98

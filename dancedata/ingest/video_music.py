@@ -7,9 +7,10 @@ Music is only described here (sample rate, length, tempo); featurize decodes it 
 Tempo: ``--bpm`` when given, else estimated with ``librosa.beat.beat_track`` on the music
 decoded at :data:`BPM_SR` Hz (hop :data:`BPM_HOP`), recorded as ``bpm_estimated``.
 
-A video's audio track needs the ``ffmpeg`` program to decode. Its presence is read from the
-container (MP4/MOV/AVI); when the video has (or may have) one and ffmpeg is missing, the ingest
-stops with a line suggesting ``--music FILE`` or ``--no-music``.
+A video's audio track is decoded with PyAV (the optional ``viz`` extra; it ships its own FFmpeg
+libraries, so no ``ffmpeg`` program is needed). Its presence is read from the container
+(MP4/MOV/AVI); when the video has (or may have) one and PyAV is missing, the ingest stops with a
+line naming the extra and suggesting ``--music FILE`` or ``--no-music``.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ import numpy as np
 from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.errors import InputError
 from dancedata.io.audio import audio_info, feature_frames, load_mono, resampled_length
-from dancedata.io.video_clock import audio_track_present, extract_audio, ffmpeg_path
+from dancedata.io.av_audio import AV_HINT, av_available
+from dancedata.io.video_clock import audio_track_present, extract_audio
 
 BPM_SR = 22050
 BPM_HOP = 512
@@ -123,17 +125,18 @@ def music_from_video(video: Path, sha256: str, bpm: float | None) -> MusicTrack 
     """Describe ``video``'s own audio track; None when the container says it has none.
 
     Raises:
-        InputError: naming the video, when it has (or may have) an audio track and ffmpeg is
-            not installed, or ffmpeg fails on a track the container declares.
+        InputError: naming the video, when it has (or may have) an audio track and PyAV (the
+            ``viz`` extra) is not installed, or decoding fails on a track the container declares.
     """
     present = audio_track_present(video)
     if present is False:
         return None
-    if ffmpeg_path() is None:
+    if not av_available():
         has = "has an audio track" if present else "may have an audio track (unknown container)"
         raise InputError(
-            f"the video {has}, and decoding it needs the ffmpeg program, which is not on PATH: "
-            "install ffmpeg, or give the music with --music FILE, or pass --no-music",
+            f"the video {has}, and decoding it needs PyAV from the optional 'viz' extra, which "
+            f"is not installed: {AV_HINT}, or give the music with --music FILE, or pass "
+            "--no-music",
             video,
         )
     try:

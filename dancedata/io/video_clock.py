@@ -11,16 +11,15 @@ video. This module reads that clock with OpenCV:
   (``CAP_PROP_POS_MSEC``).
 
 Audio: whether a track exists is read from the container itself (MP4/MOV ``hdlr`` boxes, AVI
-``strh`` headers; other containers: unknown) with no external tool. Decoding it needs the
-``ffmpeg`` program (through audioread), which is not a Python package; without it
-:func:`extract_audio` raises a clear :class:`~dancedata.errors.InputError` and the alternative is
-``--music FILE``.
+``strh`` headers; other containers: unknown) with no external tool. Decoding it uses PyAV (the
+optional ``viz`` extra, which ships its own FFmpeg libraries: no ``ffmpeg`` program on PATH is
+needed; see :mod:`dancedata.io.av_audio`); without PyAV :func:`extract_audio` raises a clear
+:class:`~dancedata.errors.InputError` naming the extra, and the alternative is ``--music FILE``.
 """
 
 from __future__ import annotations
 
 import math
-import shutil
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -281,47 +280,31 @@ def audio_track_present(path: str | Path) -> bool | None:
     return None
 
 
-def ffmpeg_path() -> str | None:
-    """Path of the ``ffmpeg`` (or ``avconv``) program audioread decodes with, or None."""
-    return shutil.which("ffmpeg") or shutil.which("avconv")
-
-
 def extract_audio(
     path: str | Path, sr: int | None = None, mono: bool = True
 ) -> tuple[np.ndarray, int]:
     """Decode a video's audio track: (samples float32 in [-1, 1], sample rate in Hz).
 
-    Samples are (n,) when ``mono`` (channel mean) else (channels, n). ``sr`` resamples (librosa).
+    Samples are (n,) when ``mono`` (channel mean) else (channels, n). ``sr`` resamples (librosa,
+    soxr_hq). Decoded with PyAV (:func:`dancedata.io.av_audio.decode_audio_track`).
 
     Raises:
-        InputError: naming the video, when it has no audio track, when ``ffmpeg`` is not on PATH
-            (install it, or give the music file with ``--music``), or when decoding fails.
+        InputError: naming the video, when it has no audio track, when PyAV (the ``viz`` extra)
+            is not installed (install it, or give the music file with ``--music``), or when
+            decoding fails.
     """
+    from dancedata.io.av_audio import AV_HINT, av_available, decode_audio_track
+
     path = Path(path)
     if audio_track_present(path) is False:
         raise InputError("the video has no audio track; give the music with --music FILE", path)
-    if ffmpeg_path() is None:
+    if not av_available():
         raise InputError(
-            "reading audio from a video needs the ffmpeg program, which is not on PATH; install "
-            "ffmpeg or give the music with --music FILE",
+            "reading audio from a video needs PyAV, from the optional 'viz' extra, which is not "
+            f"installed: {AV_HINT}, or give the music with --music FILE",
             path,
         )
-    from audioread.exceptions import DecodeError
-    from audioread.ffdec import FFmpegAudioFile
-
-    chunks: list[bytes] = []
-    try:
-        with FFmpegAudioFile(str(path)) as audio:
-            native_sr, channels = int(audio.samplerate), int(audio.channels)
-            for block in audio.read_data():
-                chunks.append(block)
-    except DecodeError as exc:
-        reason = str(exc) or type(exc).__name__
-        raise InputError(f"ffmpeg found no decodable audio stream ({reason})", path) from None
-    if native_sr <= 0 or channels <= 0:
-        raise InputError("ffmpeg reported no sample rate or channel count for the audio", path)
-    pcm = np.frombuffer(b"".join(chunks), dtype="<i2").astype(np.float32) / 32768.0
-    pcm = pcm[: pcm.size - pcm.size % channels].reshape(-1, channels).T
+    pcm, native_sr = decode_audio_track(path)
     samples = pcm.mean(axis=0) if mono else pcm
     if sr is not None and sr != native_sr:
         import librosa
