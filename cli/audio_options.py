@@ -73,3 +73,22 @@ UseCache = Annotated[
         help="Reuse and save per-track audio features in the feature cache.",
     ),
 ]
+AcceptChangedMusic = Annotated[
+    bool,
+    typer.Option(
+        "--accept-changed-music",
+        help="Use music files that changed since ingest as they are now: re-hash them and "
+        "record the new sha256, size, mtime and header in the new version's music table (and "
+        "the new hashes in its config). Without it a changed file stops featurize with a line "
+        "naming it.",
+    ),
+]
+MaxAudioSeconds = Annotated[
+    float,
+    typer.Option(
+        min=0,
+        help="Most seconds of one track to decode (the span its sequences need plus 30 s, or "
+        "the whole track when shorter). A track needing more is refused before decoding; 0: "
+        "no limit. The default families peak at about 1.6 GB per decoded hour per worker.",
+    ),
+]

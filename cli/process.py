@@ -8,8 +8,10 @@ from typing import Annotated
 
 import typer
 from dancedata.cli.audio_options import (
+    AcceptChangedMusic,
     AudioFamilies,
     CacheDir,
+    MaxAudioSeconds,
     NmfdIterations,
     NmfdTemplateFrames,
     Stems,
@@ -75,6 +77,8 @@ def featurize(
     tempogram_frames: TempogramFrames = 384,
     cache: UseCache = True,
     cache_dir: CacheDir = None,
+    accept_changed_music: AcceptChangedMusic = False,
+    max_audio_seconds: MaxAudioSeconds = 1800.0,
     workers: Workers = 1,
     dask: Dask = None,
     version: VersionOpt = None,
@@ -115,6 +119,8 @@ def featurize(
         ),
         use_cache=cache,
         cache_dir=str(cache_dir) if cache_dir else None,
+        accept_changed_music=accept_changed_music,
+        max_audio_seconds=max_audio_seconds or None,
     )
     report(run(store, options), "featurize", as_json)
 

@@ -44,6 +44,7 @@ from dancedata.ingest.aist_splits import split_rows
 from dancedata.ingest.result import CommandResult
 from dancedata.io.aist import AistMotion, find_ignore_list, find_split_files, read_motion
 from dancedata.io.audio import audio_info, feature_frames, find_music, resampled_length
+from dancedata.io.music_file import file_stamp
 from dancedata.progress import progress
 from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS
 from dancedata.store.arrays import FrameArrayWriter
@@ -106,12 +107,14 @@ class _Inventory:
 
 
 def _music_dir(raw: Path, options: AistIngestOptions) -> Path:
+    """The music folder, absolute: the music table records paths featurize opens later, maybe
+    from another working directory."""
     if options.music_dir is not None:
-        return options.music_dir
+        return options.music_dir.resolve()
     for candidate in (raw / "wav", raw / "music", raw / "audio"):
         if candidate.is_dir():
-            return candidate
-    return raw / "wav"
+            return candidate.resolve()
+    return (raw / "wav").resolve()
 
 
 def _check_selection(options: AistIngestOptions) -> None:
@@ -249,6 +252,8 @@ def _music_rows(
                 "frame_stop": start + n_frames,
                 "path": str(path),
                 "sha256": None,
+                # featurize's fast check that the file is still the one hashed here
+                **file_stamp(path).columns(),
             }
         )
         start += n_frames

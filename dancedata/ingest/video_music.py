@@ -24,7 +24,9 @@ import numpy as np
 from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.errors import InputError
 from dancedata.io.audio import audio_info, feature_frames, load_mono, resampled_length
+from dancedata.io.audio_decode import DEFAULT_MAX_AUDIO_SECONDS
 from dancedata.io.av_audio import AV_HINT, av_available
+from dancedata.io.music_file import FileStamp, file_stamp
 from dancedata.io.video_clock import audio_track_present, extract_audio
 
 BPM_SR = 22050
@@ -42,6 +44,7 @@ class MusicTrack:
         sr: native sample rate in Hz; n_samples: samples per channel; channels.
         bpm: beats per minute; bpm_estimated: True when estimated (no ``--bpm``).
         source: "file" (``--music``) or "video_audio".
+        stamp: size and mtime of ``path`` (featurize's fast check that it is unchanged).
     """
 
     music_id: str
@@ -53,6 +56,7 @@ class MusicTrack:
     bpm: float
     bpm_estimated: bool
     source: str
+    stamp: FileStamp | None = None
 
     @property
     def duration_s(self) -> float:
@@ -79,6 +83,7 @@ class MusicTrack:
             "sha256": self.sha256,
             "bpm_estimated": self.bpm_estimated,
             "music_source": self.source,
+            **(self.stamp.columns() if self.stamp else {}),
         }
 
 
@@ -102,11 +107,18 @@ def bpm_method() -> dict[str, Any]:
 
 def music_from_file(path: Path, sha256: str, bpm: float | None) -> MusicTrack:
     """Describe a ``--music`` file; estimate its tempo when ``bpm`` is None."""
+    stamp = file_stamp(path)
     info = audio_info(path)
     if info.n_samples == 0:
         raise InputError("music file holds no samples", path)
     estimated = bpm is None
     if bpm is None:
+        if info.duration_s > DEFAULT_MAX_AUDIO_SECONDS:
+            raise InputError(
+                f"music is {info.duration_s:.0f} s long; estimating its tempo would decode all "
+                f"of it, over the {DEFAULT_MAX_AUDIO_SECONDS:g} s limit: give it with --bpm",
+                path,
+            )
         bpm = estimate_bpm(load_mono(path, BPM_SR), BPM_SR, path)
     return MusicTrack(
         path.stem,
@@ -118,6 +130,7 @@ def music_from_file(path: Path, sha256: str, bpm: float | None) -> MusicTrack:
         float(bpm),
         estimated,
         "file",
+        stamp,
     )
 
 
@@ -160,4 +173,5 @@ def music_from_video(video: Path, sha256: str, bpm: float | None) -> MusicTrack 
         float(bpm),
         estimated,
         "video_audio",
+        file_stamp(video),
     )

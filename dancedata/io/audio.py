@@ -60,7 +60,8 @@ def _decode_with_librosa(path: Path, sr: int | None, mono: bool) -> tuple[np.nda
             warnings.simplefilter("ignore")
             y, out_sr = librosa.load(str(path), sr=sr, mono=mono)
     except Exception as exc:  # audioread/soundfile raise many unrelated types
-        detail = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+        text = " ".join(str(exc).split())
+        detail = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
         raise InputError(
             f"cannot decode audio: not a readable wav/flac/ogg/mp3 file, or truncated ({detail})",
             path,
@@ -70,10 +71,16 @@ def _decode_with_librosa(path: Path, sr: int | None, mono: bool) -> tuple[np.nda
     return y, int(out_sr)
 
 
-def load_mono(path: str | Path, sr: int) -> np.ndarray:
-    """Decode ``path`` to mono float32 resampled to ``sr`` Hz (librosa.load, soxr_hq)."""
-    y, _ = _decode_with_librosa(Path(path), sr=sr, mono=True)
-    return np.ascontiguousarray(y, dtype=np.float32)
+def load_mono(path: str | Path, sr: int, max_seconds: float | None = None) -> np.ndarray:
+    """Decode ``path`` (at most its first ``max_seconds`` s) to mono float32 resampled to
+    ``sr`` Hz, with the numbers of librosa.load (soxr_hq) and every sample checked; see
+    :func:`dancedata.io.audio_decode.decode_mono`."""
+    from dancedata.io.audio_decode import decode_mono
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("music file not found", path)
+    return decode_mono(path, sr, max_seconds=max_seconds).y
 
 
 def resampled_length(n_samples: int, sr_in: int, sr_out: int) -> int:

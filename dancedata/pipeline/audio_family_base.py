@@ -62,8 +62,11 @@ class AudioSettings:
 class TrackAudio:
     """One music track as the families see it.
 
-    ``y`` (mono float32 at ``cfg.sr`` Hz) is decoded from ``path`` on first use. ``timings``
-    collects wall seconds of the decode (``decode``) and of every shared computation (by key).
+    ``y`` (mono float32 at ``cfg.sr`` Hz) is decoded from ``path`` on first use: at most its
+    first ``span_s`` seconds (None: all of it), from the very bytes whose sha256 must equal
+    ``sha256`` when given (see :func:`dancedata.pipeline.music_inputs.decode_checked`).
+    ``timings`` collects wall seconds of the decode (``decode``) and of every shared computation
+    (by key); ``decoded_s`` the seconds of the file decoded.
     """
 
     def __init__(
@@ -73,10 +76,15 @@ class TrackAudio:
         cfg: AudioFeatureConfig,
         *,
         y: np.ndarray | None = None,
+        sha256: str | None = None,
+        span_s: float | None = None,
     ) -> None:
         self.path = path
         self.bpm = bpm
         self.cfg = cfg
+        self.sha256 = sha256
+        self.span_s = span_s
+        self.decoded_s: float | None = None
         self._y = y
         self._shared: dict[str, Any] = {}
         self.timings: dict[str, float] = {}
@@ -88,10 +96,11 @@ class TrackAudio:
     @property
     def y(self) -> np.ndarray:
         if self._y is None:
-            from dancedata.io.audio import load_mono
+            from dancedata.pipeline.music_inputs import decode_checked
 
             start = time.perf_counter()
-            self._y = load_mono(self.path, self.cfg.sr)
+            decoded = decode_checked(self.path, self.cfg.sr, self.sha256, self.span_s)
+            self._y, self.decoded_s = decoded.y, decoded.decoded_s
             self.timings["decode"] = time.perf_counter() - start
         return self._y
 

@@ -1,9 +1,13 @@
 """One track through the audio families, with the feature cache in front of each family.
 
 For every requested family: look its arrays up in the feature cache (key: the track's sha256,
-the family's config, the FACT config, the dancedata and library versions); on a miss compute
-them through the track's shared context (decode once, separate once) and save them. A track
-whose families all hit the cache is never decoded.
+the decoded span when it is shorter than the track, the family's config, the FACT config, the
+dancedata and library versions); on a miss compute them through the track's shared context
+(decode once, separate once) and save them. A track whose families all hit the cache is never
+decoded. The sha256 in the key is the verified hash of the file's content (see
+:mod:`dancedata.pipeline.music_inputs`): featurize checks it against the file before planning,
+and the decode hashes the bytes it decodes and refuses them if they differ, so an entry is only
+ever saved under the hash of the content it was computed from.
 
 :func:`compute_track_features` also measures what it did, per track: wall seconds of the decode,
 of each shared step (``separate``: the stems) and of each family (its own work, shared steps
@@ -35,10 +39,15 @@ def family_cache_key(
     cfg: AudioFeatureConfig,
     audio_sha256: str,
     bpm: float | None = None,
+    span_s: float | None = None,
 ) -> str:
     """The feature-cache key of family ``name`` on the track with content ``audio_sha256``
-    (and tempo ``bpm``, for families that use it)."""
+    (and tempo ``bpm``, for families that use it), decoded whole or, with ``span_s``, only its
+    first ``span_s`` seconds."""
     family = FAMILIES[name]
+    track: dict[str, float | None] = {"bpm": bpm} if family.uses_bpm else {}
+    if span_s is not None:
+        track["decoded_s"] = round(float(span_s), 6)
     return cache_key(
         audio_sha256,
         name,
@@ -46,7 +55,7 @@ def family_cache_key(
         cfg.as_dict(),
         __version__,
         library_versions(family.libraries(settings)),
-        track={"bpm": bpm} if family.uses_bpm else None,
+        track=track or None,
     )
 
 
@@ -60,22 +69,27 @@ def compute_track_features(
     audio_sha256: str | None = None,
     music_id: str | None = None,
     cache_dir: str | None = None,
+    span_s: float | None = None,
+    partial: bool = False,
 ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """Arrays of every family in ``families`` for the track at ``path`` (untrimmed), and the
-    run's statistics. ``cache_dir`` None (or no ``audio_sha256``) bypasses the cache."""
+    run's statistics. ``cache_dir`` None (or no ``audio_sha256``) bypasses the cache. At most
+    the first ``span_s`` seconds are decoded (None: all); ``partial`` says that is fewer than
+    the whole track, which then keys the cache."""
     global _TRACKS_IN_PROCESS
     order = _TRACKS_IN_PROCESS
     _TRACKS_IN_PROCESS += 1
     start = time.perf_counter()
     cache = FeatureCache(cache_dir) if cache_dir and audio_sha256 else None
-    track = TrackAudio(path, bpm, cfg)
+    track = TrackAudio(path, bpm, cfg, sha256=audio_sha256, span_s=span_s)
+    key_span = span_s if partial else None
     features: dict[str, np.ndarray] = {}
     seconds: dict[str, float] = {}
     hits = misses = 0
     for name in families:
         family = FAMILIES[name]
         specs = family.arrays(cfg, settings)
-        key = family_cache_key(name, settings, cfg, audio_sha256, bpm) if cache else None
+        key = family_cache_key(name, settings, cfg, audio_sha256, bpm, key_span) if cache else None
         if cache is not None and key is not None:
             expected = {s.path: (tuple(s.row_shape), s.dtype) for s in specs}
             cached = cache.load(key, expected)
@@ -98,6 +112,7 @@ def compute_track_features(
                 "audio_config": cfg.as_dict(),
                 "audio_sha256": audio_sha256,
                 "bpm": bpm if family.uses_bpm else None,
+                "decoded_s": track.decoded_s,
                 "music_id": music_id,
                 "source": str(path),
                 "dancedata_version": __version__,
@@ -113,6 +128,7 @@ def compute_track_features(
     }
     if track.decoded:
         stats["samples"] = int(track.y.shape[0])
+        stats["decoded_s"] = track.decoded_s
     return features, stats
 
 

@@ -132,7 +132,9 @@ class AudioUnit:
     music_id: str
     path: str
     bpm: float | None
-    sha256: str | None = None  # of the music file: the feature cache key
+    sha256: str | None = None  # of the music file, verified: the feature cache key
+    span_s: float | None = None  # seconds decoded from the start (None: all of the file)
+    partial: bool = False  # span_s is less than the whole track (keys the cache)
 
     @property
     def id(self) -> str:
@@ -169,6 +171,8 @@ def run_audio_unit(job: AudioJob, unit: AudioUnit) -> dict[str, Any]:
         audio_sha256=unit.sha256,
         music_id=unit.music_id,
         cache_dir=job.cache_dir,
+        span_s=unit.span_s,
+        partial=unit.partial,
     )
     n = min(features[path].shape[0] for path in job.outputs)
     for path in job.outputs:

@@ -1,0 +1,207 @@
+"""Decode music to mono float32 with bounded memory and checked samples.
+
+:func:`decode_mono` reads a file (a path or an open binary handle) with libsndfile, which picks
+the decoder from the content, never from the extension: a FLAC named ``.wav`` decodes as the
+FLAC it is (WAV, FLAC, OGG/Vorbis, MP3 and the other libsndfile formats). Content libsndfile
+cannot read falls back to librosa/audioread by path (e.g. a video's AAC track through ffmpeg).
+
+Bounded memory: at most ``max_seconds`` from the start are read (``ceil(max_seconds × sr_native)``
+frames), in blocks of :data:`BLOCK_FRAMES` frames, each mixed down to mono before the next is
+read; so the peak is the mono span plus one block, whatever the file's length or its header's
+claims. The mono signal is then resampled exactly as ``librosa.load(path, sr=sr)`` does (the
+mean over channels of the float32 samples, then ``librosa.resample`` with ``soxr_hq``): on the
+same samples the output is identical to ``librosa.load``.
+
+Checked samples: every block is checked before use. A sample that is NaN or ±Inf, or whose
+magnitude passes :data:`MAX_ABS_SAMPLE`, stops the decode with one line naming the file, the
+sample, its time and channel. Full scale is ±1 (integer formats cannot leave it); float files
+may exceed it a little when clipped, so up to ±1000 (+60 dBFS) is accepted. Past that the file
+is not audio at the scale the features assume, and its power spectra would overflow float32
+(|X|² reaches (n_fft · x)²): 1e30 would turn into Inf and NaN features.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+
+from dancedata.errors import InputError
+
+# Largest accepted |sample| (linear, full scale 1.0): +60 dBFS.
+MAX_ABS_SAMPLE = 1000.0
+# Frames read per block (~6 s at 44.1 kHz): bounds the extra memory of the multichannel read.
+BLOCK_FRAMES = 1 << 18
+RES_TYPE = "soxr_hq"  # librosa.load's default resampler
+# Default limit on the seconds of one track decoded at once (featurize --max-audio-seconds; the
+# tempo estimate of ingest bvh/video without --bpm): the default audio families peak at about
+# 1.6 GB RSS per decoded hour, so 30 minutes stay near 1 GB per worker.
+DEFAULT_MAX_AUDIO_SECONDS = 1800.0
+
+
+@dataclass(frozen=True)
+class DecodedAudio:
+    """Mono float32 samples at ``sr`` Hz, decoded from the first ``native_samples`` samples
+    (per channel) of a file whose native rate is ``native_sr`` Hz and whose header gives
+    ``header_samples`` (``whole``: every sample was decoded)."""
+
+    y: np.ndarray
+    sr: int
+    native_sr: int
+    native_samples: int
+    header_samples: int
+    channels: int
+
+    @property
+    def whole(self) -> bool:
+        return self.native_samples >= self.header_samples
+
+    @property
+    def decoded_s(self) -> float:
+        """Seconds of the file decoded, from its start."""
+        return self.native_samples / self.native_sr
+
+
+def decode_mono(
+    source: str | Path | BinaryIO,
+    sr: int,
+    *,
+    path: str | Path | None = None,
+    max_seconds: float | None = None,
+) -> DecodedAudio:
+    """Mono float32 at ``sr`` Hz from ``source`` (a path, or an open binary handle of the file
+    at ``path``), at most its first ``max_seconds`` seconds (None: all of it).
+
+    Raises:
+        InputError: naming the file, when it cannot be decoded, holds no samples, or holds a
+            non-finite or out-of-range sample.
+    """
+    import soundfile as sf
+
+    name = Path(path) if path is not None else Path(str(source))
+    try:
+        handle = sf.SoundFile(source)
+    except (RuntimeError, sf.LibsndfileError, TypeError, ValueError) as exc:
+        if isinstance(source, (str, Path)) or path is not None:
+            return _decode_with_librosa(name, sr, max_seconds)
+        raise _undecodable(name, exc) from None
+    with handle:
+        native_sr = int(handle.samplerate)
+        channels = int(handle.channels)
+        header = max(int(handle.frames), 0)
+        limit = header if max_seconds is None else min(header, _frames(max_seconds, native_sr))
+        mono = _read_mono(handle, limit, native_sr, channels, name)
+    return DecodedAudio(_resample(mono, native_sr, sr), sr, native_sr, mono.size, header, channels)
+
+
+def _frames(seconds: float, sr: int) -> int:
+    return int(math.ceil(max(seconds, 0.0) * sr))
+
+
+def _read_mono(handle, limit: int, native_sr: int, channels: int, name: Path) -> np.ndarray:  # noqa: ANN001
+    """Up to ``limit`` frames, block by block, each checked and mixed down to mono."""
+    import soundfile as sf
+
+    mono = np.empty(limit, dtype=np.float32)
+    done = 0
+    while done < limit:
+        try:
+            block = handle.read(
+                frames=min(BLOCK_FRAMES, limit - done), dtype="float32", always_2d=True
+            )
+        except (RuntimeError, sf.LibsndfileError) as exc:
+            raise InputError(
+                f"cannot decode audio: damaged or truncated after sample {done} "
+                f"({done / native_sr:.3f} s): {' '.join(str(exc).split())}",
+                name,
+            ) from None
+        if block.shape[0] == 0:
+            break  # the header promised more than the file holds: keep what is there
+        check_samples(block, done, native_sr, name)
+        k = block.shape[0]
+        # as librosa.to_mono: the float32 mean over channels (a single channel as is)
+        mono[done : done + k] = block[:, 0] if channels == 1 else np.mean(block.T, axis=0)
+        done += k
+    if done == 0:
+        raise InputError("audio file holds no samples", name)
+    return mono[:done]
+
+
+def check_samples(block: np.ndarray, first: int, sr: int, name: str | Path) -> None:
+    """Raise when ``block`` ((frames, channels) or (frames,), starting at sample ``first``) holds
+    a NaN, an Inf or a sample beyond ±:data:`MAX_ABS_SAMPLE`."""
+    if block.size == 0:
+        return
+    peak = float(np.max(np.abs(block)))  # NaN propagates through max
+    if peak <= MAX_ABS_SAMPLE:
+        return
+    values = block.reshape(block.shape[0], -1)
+    bad = ~(np.abs(values) <= MAX_ABS_SAMPLE)
+    frame, channel = (int(i[0]) for i in np.nonzero(bad))
+    value = float(values[frame, channel])
+    index = first + frame
+    where = f"sample {index} ({index / sr:.3f} s), channel {channel}"
+    if not math.isfinite(value):
+        raise InputError(
+            f"non-finite audio sample ({value}) at {where}: the file holds NaN/Inf, not audio",
+            name,
+        )
+    raise InputError(
+        f"out-of-range audio sample ({value:.3g}) at {where}: samples must lie within "
+        f"±{MAX_ABS_SAMPLE:g} (full scale is ±1)",
+        name,
+    )
+
+
+def _resample(mono: np.ndarray, native_sr: int, sr: int) -> np.ndarray:
+    if native_sr == sr:
+        return np.ascontiguousarray(mono, dtype=np.float32)
+    import librosa
+
+    y = librosa.resample(mono, orig_sr=native_sr, target_sr=sr, res_type=RES_TYPE)
+    return np.ascontiguousarray(y, dtype=np.float32)
+
+
+def _decode_with_librosa(path: Path, sr: int, max_seconds: float | None) -> DecodedAudio:
+    """Content libsndfile cannot read (e.g. AAC in a video, through audioread and ffmpeg)."""
+    import librosa
+
+    if not path.is_file():
+        raise InputError("music file not found", path)
+    try:
+        # librosa warns (several lines on stderr) when soundfile fails and audioread takes
+        # over; the outcome is reported as one line instead.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            y, native_sr = librosa.load(str(path), sr=None, mono=False, duration=max_seconds)
+    except Exception as exc:  # audioread/soundfile raise many unrelated types
+        raise _undecodable(path, exc) from None
+    frames = np.atleast_2d(y).T  # (frames, channels)
+    if frames.shape[0] == 0:
+        raise InputError("audio file holds no samples", path)
+    check_samples(frames, 0, int(native_sr), path)
+    mono = frames[:, 0] if frames.shape[1] == 1 else np.mean(frames.T, axis=0)
+    n = frames.shape[0]
+    header = n if max_seconds is None else n + 1  # unknown: a bounded read may have stopped early
+    return DecodedAudio(
+        _resample(mono.astype(np.float32), int(native_sr), sr),
+        sr,
+        int(native_sr),
+        n,
+        header,
+        frames.shape[1],
+    )
+
+
+def _undecodable(path: Path, exc: BaseException) -> InputError:
+    text = " ".join(str(exc).split())
+    detail = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return InputError(
+        f"cannot decode audio: the content is not a wav/flac/ogg/mp3 stream this decoder reads "
+        f"(whatever the extension), or it is truncated ({detail})",
+        path,
+    )
