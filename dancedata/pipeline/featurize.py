@@ -49,6 +49,11 @@ from dancedata.pipeline.featurize_units import (
 from dancedata.pipeline.motion_families import DEFAULT_FAMILIES as DEFAULT_MOTION_FAMILIES
 from dancedata.pipeline.motion_families import FAMILIES as MOTION_FAMILIES
 from dancedata.pipeline.motion_families import MotionSettings
+from dancedata.pipeline.music_inputs import (
+    DEFAULT_MAX_AUDIO_SECONDS,
+    MusicInputs,
+    check_music_inputs,
+)
 from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter
 from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
@@ -80,6 +85,10 @@ class FeaturizeOptions:
     dask: str | None = None  # Dask scheduler address, or "local:N"
     unit_frames: int = 2 * CHUNK_FRAMES  # target motion frames per work unit
     use_cache: bool = True  # per-track audio features from/to the feature cache
+    # Music inputs (dancedata.pipeline.music_inputs): a file changed since ingest is refused
+    # unless accepted (then re-hashed and recorded); seconds decoded per track are limited.
+    accept_changed_music: bool = False
+    max_audio_seconds: float | None = DEFAULT_MAX_AUDIO_SECONDS  # None or 0: no limit
     cache_dir: str | None = None  # default: dancedata.feature_cache.default_cache_dir()
 
     def audio_family_names(self) -> list[str]:
@@ -162,6 +171,8 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
     if options.audio and abs(audio_cfg.fps - fps) > 1e-9:
         raise InputError(f"audio fps {audio_cfg.fps} differs from the motion fps {fps}")
     config = options.config(audio_cfg)
+    music_inputs = _music_inputs(reader, audio_cfg, options)  # verified before use
+    config.update(music_inputs.config())  # accepted changed music: new hashes, new fingerprint
     fp = fingerprint("featurize", config, [base_fingerprint(reader.manifest)], __version__)
     existing = already_done(store, fp, reader.manifest, "featurize")
     if existing is not None:
@@ -194,7 +205,7 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
         sequences = reader.table("sequences")
         starts = np.asarray(sequences.column("frame_start").to_numpy(), dtype=np.int64)
         stops = np.asarray(sequences.column("frame_stop").to_numpy(), dtype=np.int64)
-        music = reader.table("music").to_pylist() if reader.has_table("music") else []
+        music = music_inputs.rows
         if not version.resumed:
             _prepare(version, motion_specs, audio_specs, int(stops[-1]) if len(stops) else 0)
         build = version.build_area()
@@ -215,8 +226,8 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
                 Job("motion", partial(run_motion_unit, motion_job), "featurize motion", units)
             )
         audio_units = [
-            AudioUnit(i, row["music_id"], row["path"], row["bpm"], row.get("sha256"))
-            for i, row in enumerate(music)
+            AudioUnit(i, row["music_id"], t.path, row["bpm"], t.sha256, t.span_s, t.partial)
+            for i, (row, t) in enumerate(zip(music, music_inputs.tracks, strict=True))
         ]
         audio_job = AudioJob(
             build=build,
@@ -258,6 +269,22 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
             )
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts)
+
+
+def _music_inputs(
+    reader: VersionReader, cfg: AudioFeatureConfig, options: FeaturizeOptions
+) -> MusicInputs:
+    """The parent's music rows, each file verified against what ingest recorded and its decoded
+    span planned and limited (none when audio is off)."""
+    if not options.audio or not reader.has_table("music"):
+        return MusicInputs()
+    return check_music_inputs(
+        reader.table("music").to_pylist(),
+        reader.table("sequences").to_pylist(),
+        cfg,
+        accept_changed=options.accept_changed_music,
+        max_audio_seconds=options.max_audio_seconds,
+    )
 
 
 def _store_id(store: str | Path) -> str:
