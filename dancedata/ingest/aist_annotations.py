@@ -9,6 +9,10 @@ rows of the right length, and the sequences table says which is which (``has_key
     motion/keypoints3d_optim  (F, 17, 3)     float32  metres
     motion/keypoints2d        (F, 9, 17, 3)  float32  x, y pixels, confidence; NaN: none
     motion/det_scores         (F, 9)         float32  person detection score per view
+
+The keypoints are checked as stored (after cm -> m and the float32 cast, where a finite float64
+such as 1e300 becomes Inf): NaN is kept, Inf is refused, keypoints3d stay within ±1000 m and
+keypoints2d / det_scores within ±1e6 (an overflow guard). See dancedata.io.aist.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dancedata.errors import InputError
+from dancedata.io.aist import MAX_ABS_KEYPOINTS3D_M, MAX_ABS_PIXELS, check_stored
 from dancedata.io.aist_keypoints import (
     N_KEYPOINTS,
     N_VIEWS,
@@ -64,14 +69,25 @@ def read_annotations(
     kp3d_path: Path | None, kp2d_path: Path | None, n_frames: int, fps: float
 ) -> SequenceAnnotations:
     """Read a sequence's keypoint pickles and check they match its ``n_frames`` motion frames
-    at ``fps`` (InputError naming the file otherwise)."""
-    kp3d = read_keypoints3d(kp3d_path) if kp3d_path is not None else None
-    if kp3d is not None and kp3d.n_frames != n_frames:
-        raise InputError(
-            f"keypoints3d has {kp3d.n_frames} frames but the motion has {n_frames}", kp3d_path
-        )
-    kp2d = read_keypoints2d(kp2d_path) if kp2d_path is not None else None
+    at ``fps`` and that what will be stored is finite (NaN allowed) and in range (InputError
+    naming the file otherwise)."""
+    with np.errstate(over="ignore"):  # overflow to Inf in the float32 cast: check_stored finds it
+        kp3d = read_keypoints3d(kp3d_path) if kp3d_path is not None else None
+        kp2d = read_keypoints2d(kp2d_path) if kp2d_path is not None else None
+    if kp3d is not None:
+        if kp3d.n_frames != n_frames:
+            raise InputError(
+                f"keypoints3d has {kp3d.n_frames} frames but the motion has {n_frames}",
+                kp3d_path,
+            )
+        for label, values in (
+            ("keypoints3d", kp3d.keypoints3d),
+            ("keypoints3d_optim", kp3d.keypoints3d_optim),
+        ):
+            check_stored(label, values, kp3d_path, MAX_ABS_KEYPOINTS3D_M, units="m", allow_nan=True)
     if kp2d is not None:
+        for label, values in (("keypoints2d", kp2d.keypoints2d), ("det_scores", kp2d.det_scores)):
+            check_stored(label, values, kp2d_path, MAX_ABS_PIXELS, allow_nan=True)
         if kp2d.n_frames != n_frames:
             raise InputError(
                 f"keypoints2d has {kp2d.n_frames} frames but the motion has {n_frames}", kp2d_path

@@ -1,8 +1,17 @@
 """Read AIST++ annotation files: motion and keypoint pickles, split lists, ignore list.
 
 Pickles go through the restricted unpickler (see :mod:`dancedata.safe_pickle`): nothing they
-name is executed. Every array is checked for keys, shapes, dtypes and finite values, so a bad file
-is refused here with one line naming it, before anything reaches a store.
+name is executed, and it builds only plain bool/int/float arrays. Every array is checked for
+keys, shapes, dtypes and finite values as read, and again as it will be stored: after the
+conversion (trans = smpl_trans / smpl_scaling, the float32 cast), where a finite float64 such as
+1e300, or a division by a subnormal scaling such as 1e-40, would otherwise become Inf. So a bad
+file is refused here with one line naming it, before anything reaches a store.
+
+Plausible ranges of what is stored (a value outside is refused; docs/STORE.md lists them too):
+
+    smpl_scaling          one number in [0.01, 10000]   (AIST++: 89-100)
+    motion/axis_angle     |value| <= 100 rad            float32, finite (AIST++: within ±3.5)
+    motion/trans          |value| <= 1000 m             float32, finite (AIST++: within ±2.6)
 """
 
 from __future__ import annotations
@@ -14,6 +23,13 @@ import numpy as np
 
 from dancedata.errors import InputError
 from dancedata.safe_pickle import load_restricted
+
+# Plausible ranges of stored values (module docstring; docs/STORE.md).
+SCALING_RANGE: tuple[float, float] = (0.01, 10_000.0)  # smpl_scaling (smpl_trans units per m)
+MAX_ABS_AXIS_ANGLE_RAD = 100.0  # about 16 turns; fitted SMPL poses stay within ±2π
+MAX_ABS_TRANS_M = 1_000.0  # root translation; a dance floor is metres wide
+MAX_ABS_KEYPOINTS3D_M = 1_000.0  # keypoints3d, keypoints3d_optim after cm -> m
+MAX_ABS_PIXELS = 1_000_000.0  # keypoints2d and det_scores: an overflow guard, not plausibility
 
 SPLIT_SCHEMES: tuple[str, ...] = ("crossmodal", "pose")
 SPLIT_NAMES: tuple[str, ...] = ("train", "val", "test")
@@ -52,7 +68,8 @@ def checked_array(
     is given — with finite values (NaN allowed with ``allow_nan``; Inf never). One InputError
     line naming ``path`` otherwise."""
     if key not in data:
-        raise InputError(f"missing key {key!r} (keys: {sorted(map(str, data))})", path)
+        keys = sorted(str(k)[:40] for k in list(data)[:20])
+        raise InputError(f"missing key {key!r} (keys: {keys})", path)
     value = data[key]
     if not isinstance(value, np.ndarray):
         raise InputError(f"{key} is {type(value).__name__}, expected a numpy array", path)
@@ -76,20 +93,83 @@ def checked_array(
     return value
 
 
+def check_stored(
+    label: str,
+    values: np.ndarray,
+    path: Path,
+    max_abs: float,
+    *,
+    units: str = "",
+    allow_nan: bool = False,
+) -> np.ndarray:
+    """``values`` as they will be stored (after conversion and the float32 cast): no Inf (and no
+    NaN unless ``allow_nan``), and every value within ±``max_abs``. Frames are axis 0. One
+    InputError line naming ``path`` and the first offending frame otherwise."""
+    what = f"{label} as stored ({values.dtype}{' ' + units if units else ''})"
+    bad = np.isinf(values) if allow_nan else ~np.isfinite(values)
+    if bad.any():
+        first = int(np.argwhere(bad.reshape(len(values), -1).any(axis=1))[0][0])
+        kind = "Inf" if allow_nan or np.isinf(values[first]).any() else "NaN"
+        raise InputError(f"{what} holds {kind} (first at frame {first})", path)
+    with np.errstate(invalid="ignore"):
+        outside = np.abs(values) > max_abs  # NaN compares False
+    if outside.any():
+        frame, *rest = np.argwhere(outside)[0]
+        value = float(values[(frame, *rest)])
+        raise InputError(
+            f"{what} has {value:.3g} at frame {int(frame)}, outside the plausible range "
+            f"±{max_abs:g}",
+            path,
+        )
+    return values
+
+
+def read_scaling(data: dict, path: Path) -> float:
+    """``smpl_scaling``: one number (a size-1 numeric array, or a Python number) within
+    :data:`SCALING_RANGE`; a string, list or anything else is one InputError line."""
+    if "smpl_scaling" not in data:
+        raise InputError("missing key 'smpl_scaling'", path)
+    value = data["smpl_scaling"]
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "fiu" or value.size != 1:
+            raise InputError(
+                f"smpl_scaling must be one positive number, found {value.dtype} array of "
+                f"shape {value.shape}",
+                path,
+            )
+        scaling = float(value.reshape(-1)[0])
+    elif isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_)
+    ):
+        scaling = float(value)
+    else:
+        raise InputError(
+            f"smpl_scaling is {type(value).__name__}, expected one positive number", path
+        )
+    if not np.isfinite(scaling) or scaling <= 0:
+        raise InputError(f"smpl_scaling must be one positive number, found {scaling:g}", path)
+    low, high = SCALING_RANGE
+    if not low <= scaling <= high:
+        raise InputError(
+            f"smpl_scaling {scaling:.3g} is outside the plausible range [{low:g}, {high:g}] "
+            "(smpl_trans units per metre; AIST++ has 89-100)",
+            path,
+        )
+    return scaling
+
+
 def read_motion(path: str | Path) -> AistMotion:
     """Read ``motions/<seq>.pkl``: smpl_poses (N, 72), smpl_trans (N, 3) cm, smpl_scaling (1,).
 
-    Translation in metres is smpl_trans / smpl_scaling, as the AIST++ API computes it.
+    Translation in metres is smpl_trans / smpl_scaling, as the AIST++ API computes it. What is
+    returned is what gets stored, and it is what is checked: float32, finite, within
+    :data:`MAX_ABS_AXIS_ANGLE_RAD` and :data:`MAX_ABS_TRANS_M` (see the module docstring).
     """
     path = Path(path)
     data = _require_dict(load_restricted(path), path)
     poses = checked_array(data, "smpl_poses", path, (72,))
     trans = checked_array(data, "smpl_trans", path, (3,))
-    if "smpl_scaling" not in data:
-        raise InputError("missing key 'smpl_scaling'", path)
-    scaling = np.asarray(data["smpl_scaling"], dtype=np.float64).reshape(-1)
-    if scaling.size != 1 or not np.isfinite(scaling[0]) or scaling[0] <= 0:
-        raise InputError(f"smpl_scaling must be one positive number, found {scaling}", path)
+    scaling = read_scaling(data, path)
     if poses.shape[0] == 0:
         raise InputError("motion has zero frames", path)
     if poses.shape[0] != trans.shape[0]:
@@ -99,14 +179,18 @@ def read_motion(path: str | Path) -> AistMotion:
     loss = data.get("smpl_loss", float("nan"))
     try:
         loss = float(np.asarray(loss).reshape(-1)[0])
+    except OverflowError:
+        loss = float("inf")
     except (TypeError, ValueError, IndexError):
-        loss = float("nan")
-    return AistMotion(
-        axis_angle=poses.reshape(-1, 24, 3).astype(np.float32),
-        trans_m=(trans.astype(np.float64) / scaling[0]).astype(np.float32),
-        scaling=float(scaling[0]),
-        loss=loss,
-    )
+        loss = float("nan")  # not a number: stored as missing, as before
+    if np.isinf(loss):
+        raise InputError("smpl_loss is infinite (as stored, float64)", path)
+    with np.errstate(over="ignore"):  # overflow to Inf is found by check_stored below
+        axis_angle = poses.reshape(-1, 24, 3).astype(np.float32)
+        trans_m = (trans.astype(np.float64) / scaling).astype(np.float32)
+    check_stored("smpl_poses", axis_angle, path, MAX_ABS_AXIS_ANGLE_RAD, units="rad")
+    check_stored("smpl_trans / smpl_scaling", trans_m, path, MAX_ABS_TRANS_M, units="m")
+    return AistMotion(axis_angle=axis_angle, trans_m=trans_m, scaling=scaling, loss=loss)
 
 
 def read_name_list(path: str | Path) -> list[str]:

@@ -79,6 +79,269 @@ class _Payload:
         return (self.target, self.args)
 
 
+# -- hostile pickles, written opcode by opcode (issue 11) --------------------------------------
+# Each would crash, allocate gigabytes or store uninitialised memory through a pickle.Unpickler
+# that admits numpy.dtype state or numpy.ndarray as a callable. They are assembled by hand so
+# that building the corpus never runs them.
+HOSTILE_FRAMES = 4_000_000  # frames a hostile file declares: 4e6 × 72 float64 = 2.3 GB
+DEEP_NESTING = 200_000
+HUGE_MEMO_INDEX = 2**28
+
+
+def _op_str(text: str) -> bytes:
+    """BINUNICODE: a str."""
+    data = text.encode()
+    return b"X" + len(data).to_bytes(4, "little") + data
+
+
+def _op_int(value: int) -> bytes:
+    """BININT (signed 32-bit) or LONG1 for anything larger."""
+    if -(2**31) <= value < 2**31:
+        return b"J" + value.to_bytes(4, "little", signed=True)
+    data = value.to_bytes((value.bit_length() + 8) // 8, "little", signed=True)
+    return b"\x8a" + bytes([len(data)]) + data
+
+
+def _op_bytes(data: bytes) -> bytes:
+    """BINBYTES (protocol 3)."""
+    return b"B" + len(data).to_bytes(4, "little") + data
+
+
+def _op_tuple(*items: bytes) -> bytes:
+    return b"(" + b"".join(items) + b"t"
+
+
+def _op_global(module: str, name: str) -> bytes:
+    return b"c" + f"{module}\n{name}\n".encode()
+
+
+def _op_dtype(typestr: str, state: bytes | None = None) -> bytes:
+    """``numpy.dtype(typestr, False, True)``, then BUILD with ``state`` (numpy's own state for
+    a plain little-endian dtype when None)."""
+    if state is None:
+        state = _op_tuple(_op_int(3), _op_str("<"), b"NNN", _op_int(-1), _op_int(-1), _op_int(0))
+    return (
+        _op_global("numpy", "dtype")
+        + _op_tuple(_op_str(typestr), b"\x89\x88")
+        + b"R"
+        + state
+        + b"b"
+    )
+
+
+def _op_shape(shape: tuple[int, ...]) -> bytes:
+    return _op_tuple(*(_op_int(n) for n in shape))
+
+
+def _op_reconstructed_array(shape: tuple[int, ...], dtype: bytes, data: bytes) -> bytes:
+    """What numpy writes for an array: ``_reconstruct(ndarray, (0,), b"b")`` then BUILD with
+    ``(1, shape, dtype, is_fortran=False, data)``."""
+    head = _op_global("numpy.core.multiarray", "_reconstruct") + _op_tuple(
+        _op_global("numpy", "ndarray"), _op_shape((0,)), _op_bytes(b"b")
+    )
+    state = _op_tuple(_op_int(1), _op_shape(shape), dtype, b"\x89", _op_bytes(data))
+    return head + b"R" + state + b"b"
+
+
+def _op_ndarray_call(shape: tuple[int, ...], dtype: bytes, *extra: bytes) -> bytes:
+    """``numpy.ndarray(shape, dtype, *extra)`` called directly: uninitialised memory, or a view
+    of ``buffer`` with any strides."""
+    return _op_global("numpy", "ndarray") + _op_tuple(_op_shape(shape), dtype, *extra) + b"R"
+
+
+def _op_plain(value: object) -> bytes:
+    """``value`` as protocol-3 opcodes without PROTO and STOP (its memo puts dropped, so pieces
+    can be joined)."""
+    import pickletools
+
+    return pickletools.optimize(pickle.dumps(value, protocol=3))[2:-1]
+
+
+def _op_motion(
+    replace: dict[str, bytes], good: dict | None = None, *, head: bytes = b"", tail: bytes = b""
+) -> bytes:
+    """A motion dict pickle whose values for the keys in ``replace`` are the given opcodes;
+    ``head`` runs before the dict is built, ``tail`` inside it before SETITEMS."""
+    good = good_motion() if good is None else good
+    items = b"".join(
+        _op_str(key) + (replace[key] if key in replace else _op_plain(value))
+        for key, value in good.items()
+    )
+    return b"\x80\x04" + head + b"}(" + items + tail + b"u."
+
+
+def hostile_pickles() -> list[tuple[str, bytes, str, str]]:
+    """(name, bytes, expected error regex, note) for the memory-safety classes of issue 11."""
+    n = HOSTILE_FRAMES
+    f8 = _op_dtype("f8")
+    # dtype flags NPY_ITEM_REFCOUNT | NPY_ITEM_HASOBJECT (0x1) without NPY_LIST_PICKLE (0x2):
+    # numpy then reads the array's data from the bytes that follow, as PyObject pointers.
+    object_flags = _op_tuple(_op_int(3), _op_str("|"), b"NNN", _op_int(8), _op_int(1), _op_int(0x1))
+    deep = b")" + b"\x85" * DEEP_NESTING  # EMPTY_TUPLE then TUPLE1, 200,000 times
+    return [
+        (
+            "evil_dtype_object_flags",
+            _op_motion(
+                {
+                    "smpl_scaling": _op_reconstructed_array(
+                        (1,), _op_dtype("O8", object_flags), b"A" * 8
+                    )
+                }
+            ),
+            r"unsafe pickle: refused dtype",
+            "object dtype whose state drops the list-pickle flag: file bytes used as PyObject "
+            "pointers (0x4141414141414141), SIGSEGV",
+        ),
+        (
+            "evil_dtype_flags_on_float",
+            _op_motion(
+                {
+                    "smpl_poses": _op_reconstructed_array(
+                        (N_FRAMES, 72), _op_dtype("f8", object_flags), b"A" * 8 * N_FRAMES * 72
+                    )
+                }
+            ),
+            r"unsafe pickle: refused dtype",
+            "float64 dtype whose state claims it holds objects: numpy internal errors",
+        ),
+        (
+            "evil_ndarray_uninitialised",
+            _op_motion({"smpl_poses": _op_ndarray_call((N_FRAMES, 72), _op_dtype("f4"))}),
+            r"unsafe pickle: refused .*numpy\.ndarray",
+            "numpy.ndarray(shape, dtype) called directly: uninitialised heap memory as poses",
+        ),
+        (
+            "evil_ndarray_huge",
+            b"\x80\x04}("
+            + _op_str("smpl_poses")
+            + _op_ndarray_call((n, 72), f8)
+            + _op_str("smpl_trans")
+            + _op_ndarray_call((n, 3), f8)
+            + _op_str("smpl_scaling")
+            + _op_plain(np.array([93.0], np.float32))
+            + b"u.",
+            r"unsafe pickle: refused .*numpy\.ndarray",
+            f"a few hundred bytes declaring {n} frames of float64 (2.4 GB)",
+        ),
+        (
+            "evil_zero_stride_view",
+            _op_motion(
+                {
+                    key: _op_ndarray_call(
+                        (n, width),
+                        _op_dtype("f4"),
+                        _op_bytes(b"\0" * 4),
+                        _op_int(0),
+                        _op_shape((0, 0)),
+                    )
+                    for key, width in (("smpl_poses", 72), ("smpl_trans", 3))
+                }
+            ),
+            r"unsafe pickle: refused .*numpy\.ndarray",
+            f"a zero-stride view of a 4-byte buffer as {n} frames",
+        ),
+        (
+            "evil_huge_shape_few_bytes",
+            _op_motion({"smpl_poses": _op_reconstructed_array((n, 72), f8, b"abc")}),
+            r"unsafe pickle: refused array.*3 bytes",
+            "the array state declares 2.3 GB and holds 3 bytes",
+        ),
+        (
+            "evil_object_array",
+            _op_motion({"smpl_poses": _op_reconstructed_array((1,), _op_dtype("O8"), b"")}),
+            r"unsafe pickle: refused dtype 'O8'",
+            "an object array would unpickle its items as Python objects",
+        ),
+        (
+            "evil_structured_dtype",
+            _op_motion(
+                {
+                    "smpl_poses": _op_reconstructed_array(
+                        (1,),
+                        _op_dtype(
+                            "V8",
+                            _op_tuple(
+                                _op_int(3),
+                                _op_str("|"),
+                                b"N",
+                                _op_tuple(_op_str("a")),
+                                b"}" + _op_str("a") + _op_tuple(f8, _op_int(0)) + b"s",
+                                _op_int(8),
+                                _op_int(1),
+                                _op_int(0x10),
+                            ),
+                        ),
+                        b"\0" * 8,
+                    )
+                }
+            ),
+            r"unsafe pickle: refused dtype 'V8'",
+            "a structured dtype with fields",
+        ),
+        (
+            "evil_deep_nesting",
+            _op_motion({}, tail=deep + _op_int(1)),
+            r"unsafe pickle: refused .*nest",
+            f"{DEEP_NESTING} nested tuples as a dict key (hashing them overflows the C stack)",
+        ),
+        (
+            "evil_long_binput",
+            _op_motion({}, head=b"N" + b"r" + HUGE_MEMO_INDEX.to_bytes(4, "little") + b"0"),
+            r"unsafe pickle: refused memo index 268435456",
+            "LONG_BINPUT 2**28: the C unpickler grows its memo table to gigabytes",
+        ),
+    ]
+
+
+def converted_value_cases() -> list[tuple[str, bytes, str, str]]:
+    """Motions whose values pass a check on what was read but overflow when converted to what
+    is stored (float32, trans / scaling), and wrongly typed scalars (issue 11, items 2 and 8)."""
+    good = good_motion()
+    dump = lambda value: pickle.dumps(value, protocol=4)  # noqa: E731
+    huge_poses = good["smpl_poses"].astype(np.float64)
+    huge_poses[5, 7] = 1e300
+    big_trans = good["smpl_trans"].copy()
+    big_trans[9, 0] = 3e38  # finite float32 cm; / 0.5 overflows float32 metres
+    return [
+        (
+            "scaling_1e-40",
+            dump({**good, "smpl_scaling": np.array([1e-40], np.float32)}),
+            r"smpl_scaling 1e-40 is outside the plausible range",
+            "subnormal: trans / scaling overflows to Inf",
+        ),
+        (
+            "poses_1e300_float64",
+            dump({**good, "smpl_poses": huge_poses}),
+            r"smpl_poses as stored \(float32 rad\) holds Inf \(first at frame 5\)",
+            "finite float64, Inf once cast to float32",
+        ),
+        (
+            "trans_overflows_after_scaling",
+            dump({**good, "smpl_trans": big_trans, "smpl_scaling": np.array([0.5], np.float32)}),
+            r"smpl_trans / smpl_scaling as stored \(float32 m\) holds Inf \(first at frame 9\)",
+            "smpl_trans / smpl_scaling overflows float32",
+        ),
+        (
+            "poses_out_of_range",
+            dump({**good, "smpl_poses": good["smpl_poses"] * 1e6}),
+            r"smpl_poses as stored .* outside the plausible range",
+            "finite but millions of radians",
+        ),
+        (
+            "scaling_string",
+            dump({**good, "smpl_scaling": "93.0"}),
+            r"smpl_scaling is str, expected one positive number",
+            "a string where a number belongs",
+        ),
+        (
+            "scaling_list",
+            dump({**good, "smpl_scaling": [93.0, 1.0]}),
+            r"smpl_scaling is list, expected one positive number",
+            "",
+        ),
+    ]
+
+
 def _pickle_cases(root: Path) -> list[tuple[str, bytes, str, str]]:
     """(name, bytes, expected error regex, note) for every bad motion pickle."""
     import os
@@ -137,8 +400,8 @@ def _pickle_cases(root: Path) -> list[tuple[str, bytes, str, str]]:
         (
             "poses_strings",
             variant(smpl_poses=good["smpl_poses"].astype(str)),
-            r"smpl_poses has dtype <U\d+, expected numbers",
-            "wrong dtype",
+            r"unsafe pickle: refused dtype 'U\d+': only bool, integer and float arrays",
+            "wrong dtype: the unpickler builds only bool/int/float arrays",
         ),
         (
             "poses_bool",
@@ -179,7 +442,7 @@ def _pickle_cases(root: Path) -> list[tuple[str, bytes, str, str]]:
         (
             "zero_scaling",
             variant(smpl_scaling=np.array([0.0], np.float32)),
-            r"smpl_scaling must be one positive number",
+            r"smpl_scaling must be one positive number, found 0",
             "division by zero otherwise",
         ),
         (
@@ -237,13 +500,13 @@ def _pickle_cases(root: Path) -> list[tuple[str, bytes, str, str]]:
         (
             "unknown_codec",
             _reduce_payload("_codecs", "encode", ("abc", "atin1")),
-            r"unreadable pickle \(LookupError: unknown encoding: atin1\)",
+            r"unsafe pickle: refused _codecs\.encode\('abc', 'atin1'\): only \(str, 'latin1'\)",
             "found by fuzz/: an allowed function with a bad argument",
         ),
         (
             "persistent_id",
             b"\x80\x04P",
-            r"unreadable pickle: A load persistent id instruction was encountered, but",
+            r"unsafe pickle: refused persistent id \(PERSID\)",
             "found by fuzz/: pickle's message spans two lines",
         ),
         (
@@ -252,6 +515,8 @@ def _pickle_cases(root: Path) -> list[tuple[str, bytes, str, str]]:
             r"unreadable pickle",
             "BINBYTES claims 2 GB, holds 3 bytes",
         ),
+        *hostile_pickles(),
+        *converted_value_cases(),
     ]
 
 
