@@ -94,7 +94,8 @@ def _panel_onset(ax: Axes, d: SequencePlotData) -> None:
     if beats is not None:
         beats.set_label("tracked beats")
     ax.set_ylabel("onset\nstrength")
-    ax.legend(loc="upper right", fontsize=7, ncol=3, frameon=False)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper right", fontsize=7, ncol=3, frameon=False)
 
 
 def _panel_stems(ax: Axes, d: SequencePlotData) -> None:
