@@ -8,11 +8,19 @@ STAMP := $(VENV)/.installed
 # test` installs it once (its own stamp) so tests/test_stems_openunmix.py runs instead of skipping.
 STEMS_STAMP := $(VENV)/.installed-stems
 STEMS_PINS ?= torch==2.14.1 torchaudio==2.11.0 openunmix==1.3.0
+# The 'viz' extra (matplotlib, PyAV) for plot/report/render: `make pipeline` and `make test`.
+VIZ_STAMP := $(VENV)/.installed-viz
+# Headless Chromium (Debian package) renders the report page in tests and for README stills.
+CHROMIUM := /usr/bin/chromium
 DEMO_RAW := data/raw/aist-demo
 DEMO_STORE := data/stores/aist-demo
 DEMO_SEQUENCES ?= 24
+DEMO_REPORT := data/stores/aist-demo-report.html
+DEMO_PLOT := data/stores/aist-demo-plot.png
+# The sequence drawn for docs/img/plot.png (default: the store's first, looked up at run time).
+DEMO_PLOT_SEQ ?= $$($(PY) -c "import dancedata; print(dancedata.open_store('$(DEMO_STORE)').seq_ids()[0])")
 
-.PHONY: install install-stems pipeline test lint bench fuzz clean
+.PHONY: install install-stems install-viz browser pipeline test lint bench fuzz clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -28,16 +36,32 @@ $(STEMS_STAMP): $(STAMP)
 
 install-stems: $(STEMS_STAMP)
 
-pipeline: $(STAMP)
+$(VIZ_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e '.[viz]'
+	touch $(VIZ_STAMP)
+
+install-viz: $(VIZ_STAMP)
+
+# Debian's chromium, only when it is missing (needs root, as on CI).
+browser:
+	test -x $(CHROMIUM) || (apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium)
+
+pipeline: $(STAMP) $(VIZ_STAMP) browser
 	test -d $(DEMO_RAW) || $(BIN)/dancedata synth aist $(DEMO_RAW) --sequences $(DEMO_SEQUENCES) --seed 0
 	$(BIN)/dancedata ingest aist $(DEMO_RAW) --store $(DEMO_STORE)
 	$(BIN)/dancedata featurize $(DEMO_STORE)
 	$(BIN)/dancedata segment $(DEMO_STORE)
 	$(BIN)/dancedata validate $(DEMO_STORE)
 	$(BIN)/dancedata info $(DEMO_STORE)
+	$(BIN)/dancedata report $(DEMO_STORE) $(DEMO_REPORT)
+	$(BIN)/dancedata plot $(DEMO_STORE) $(DEMO_PLOT_SEQ) $(DEMO_PLOT)
+	mkdir -p docs/img
+	cp $(DEMO_PLOT) docs/img/plot.png
+	$(CHROMIUM) --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1280,900 \
+		--screenshot=docs/img/report.png file://$(abspath $(DEMO_REPORT)) 2>/dev/null
 
 # Tests use a temporary feature cache (tests/conftest.py sets DANCEDATA_CACHE), never ~/.cache.
-test: $(STEMS_STAMP)
+test: $(STEMS_STAMP) $(VIZ_STAMP) browser
 	$(PY) -m pytest -q
 
 bench: $(STAMP)
