@@ -60,7 +60,12 @@ from dancedata.store.contract import build_table
 from dancedata.store.fs import is_remote
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
-from dancedata.store.writer import VersionWriter, already_done, base_fingerprint
+from dancedata.store.writer import (
+    VersionWriter,
+    already_done,
+    base_fingerprint,
+    hold_store_lock,
+)
 
 DEFAULT_EULER_ORDER = "XYZ"
 
@@ -160,6 +165,13 @@ def _validate(options: FeaturizeOptions) -> None:
 def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
     """Compute the requested features from ``options.version`` (default latest) of ``store``."""
     _validate(options)
+    # Parent, fingerprint and the "already done" check are read under the lock: a run that
+    # waited behind another writer derives from (or finds) that writer's result.
+    with hold_store_lock(store, wait=options.wait_for_lock) as lock:
+        return _featurize_locked(store, options, lock)
+
+
+def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -> CommandResult:
     layout = StoreLayout(store)
     parent = layout.resolve(options.version)
     reader = VersionReader(store, parent)
@@ -201,6 +213,7 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
         stage="featurize",
         parent_stages=reader.manifest.get("stages"),
         resumable=True,
+        lock=lock,
     ) as version:
         sequences = reader.table("sequences")
         starts = np.asarray(sequences.column("frame_start").to_numpy(), dtype=np.int64)

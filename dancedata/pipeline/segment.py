@@ -14,7 +14,12 @@ from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
-from dancedata.store.writer import VersionWriter, already_done, base_fingerprint
+from dancedata.store.writer import (
+    VersionWriter,
+    already_done,
+    base_fingerprint,
+    hold_store_lock,
+)
 
 
 @dataclass
@@ -59,8 +64,17 @@ def measure_rows(sequences: list[dict[str, Any]], options: SegmentOptions) -> li
 
 
 def segment(store: str | Path, options: SegmentOptions) -> CommandResult:
+    """Write the measures table as a new version derived from ``options.version`` (default:
+    the latest version, as it is once this writer holds the store lock)."""
     if options.beats_per_measure < 1:
         raise InputError("--beats-per-measure must be at least 1")
+    # Parent, fingerprint and the "already done" check are read under the lock: a run that
+    # waited behind another writer derives from that writer's result (no lost update).
+    with hold_store_lock(store, wait=options.wait_for_lock) as lock:
+        return _segment_locked(store, options, lock)
+
+
+def _segment_locked(store: str | Path, options: SegmentOptions, lock: Any) -> CommandResult:
     layout = StoreLayout(store)
     parent = layout.resolve(options.version)
     reader = VersionReader(store, parent)
@@ -80,6 +94,7 @@ def segment(store: str | Path, options: SegmentOptions) -> CommandResult:
         wait_for_lock=options.wait_for_lock,
         stage="segment",
         parent_stages=reader.manifest.get("stages"),
+        lock=lock,
     ) as version:
         version.write_table("measures", build_table("measures", rows))
         # One unit, committed atomically: segment is quick, so a killed run just starts over.

@@ -73,3 +73,54 @@ def zarr_store(location: str | Path, *, read_only: bool = False) -> Any:
     from zarr.storage import LocalStore
 
     return LocalStore(str(local_path(location)), read_only=read_only)
+
+
+# -- operating-system failures while writing a store --------------------------------------------
+# errno -> what the user is told; these are conditions of the storage, not bugs, so they become
+# one line (StoreError) instead of a traceback. Any other OSError is left to propagate.
+_STORAGE_ERRNOS = {
+    "ENOSPC": "no space left on the device",
+    "EDQUOT": "disk quota exceeded",
+    "EFBIG": "file too large for this file system (or for this process's file size limit)",
+    "EROFS": "the file system is read-only",
+    "EACCES": "permission denied",
+    "EPERM": "operation not permitted",
+    "EIO": "input/output error from the device",
+    "ENOTDIR": "a path component is a file, not a directory",
+    "EMFILE": "too many open files in this process",
+    "ENFILE": "too many open files on this system",
+}
+
+
+def storage_problem(exc: BaseException) -> str | None:
+    """``"no space left on the device (ENOSPC)"`` for an OSError that is a condition of the
+    storage (full, read-only, no permission, ...), else None.
+
+    pyarrow reports write failures as OSError without an errno, with the C library's message in
+    the text; that message is matched too.
+    """
+    import errno as errno_mod
+
+    if not isinstance(exc, OSError):
+        return None
+    code = errno_mod.errorcode.get(exc.errno) if isinstance(exc.errno, int) else None
+    if code in _STORAGE_ERRNOS:
+        return f"{_STORAGE_ERRNOS[code]} ({code})"
+    if code is None:
+        text = str(exc)
+        for name in _STORAGE_ERRNOS:
+            number = getattr(errno_mod, name, None)
+            if number is not None and os.strerror(number) in text:
+                return f"{_STORAGE_ERRNOS[name]} ({name})"
+    return None
+
+
+def storage_error(exc: BaseException, store: str | Path, doing: str) -> StoreError | None:
+    """A one-line StoreError naming ``store`` for a storage OSError raised while ``doing``
+    (e.g. "writing a new version"); None when ``exc`` is not such an error."""
+    problem = storage_problem(exc)
+    if problem is None:
+        return None
+    where = getattr(exc, "filename", None)
+    detail = f" at {where}" if where and str(where) != str(store) else ""
+    return StoreError(f"{problem} while {doing}{detail}", store)

@@ -5,13 +5,21 @@ A store is a directory::
     STORE/store.json            {"format": "dancedata-store", "format_version": 1, "latest": "v3"}
     STORE/versions/vN/          immutable once committed; committed means manifest.json exists
     STORE/versions/.tmp-*       versions being built; never listed, removed when abandoned
+
+A ``vN`` folder whose manifest.json is missing, unreadable or not a manifest (a damaged store:
+a disk error, a hand edit, a half-restored backup) is *damaged*: it is not a committed version,
+so readers and writers pass over it with a one-line warning, ``validate`` reports it, and new
+versions are numbered past it so that nothing ever collides with it.
 """
 
 from __future__ import annotations
 
+import contextlib
+import copy
 import json
 import os
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +41,7 @@ TABLE_FILES = {
     "measures": "measures.parquet",
     "splits": "splits.parquet",
     "cameras": "cameras.parquet",
+    "keyframes": "keyframes.parquet",
 }
 
 
@@ -48,12 +57,18 @@ def write_json_atomic(path: Path, value: Any) -> None:
     """Write JSON to ``path`` through a temporary file, fsync and rename, so readers see either
     the old file or the new one, never a torn one."""
     tmp = path.with_name(f"{TEMP_PREFIX}{path.name}.{os.getpid()}")
-    with open(tmp, "w", encoding="utf-8") as handle:
-        json.dump(value, handle, indent=2, sort_keys=True)
-        handle.write("\n")
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as handle:
+            json.dump(value, handle, indent=2, sort_keys=True)
+            handle.write("\n")
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        # a full disk or a kill mid-write: leave no half-written temporary behind
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
     fsync_dir(path.parent)
 
 
@@ -89,6 +104,68 @@ def parse_pointer(text: str | bytes, where: str | Path) -> dict[str, Any]:
     return pointer
 
 
+# -- manifests ---------------------------------------------------------------------------------
+# Fields other code relies on, with the JSON types they must have when present. "fingerprint"
+# must also be present: a version without one can be neither a parent nor a cached result.
+_MANIFEST_TYPES: dict[str, tuple[type, ...]] = {
+    "format_version": (int,),
+    "version": (str,),
+    "parent": (str, type(None)),
+    "command": (str,),
+    "fingerprint": (str,),
+    "config": (dict,),
+    "stages": (dict,),
+    "inputs": (list,),
+    "skipped": (list,),
+    "counts": (dict,),
+    "libraries": (dict,),
+}
+_TYPE_NAMES = {int: "an integer", str: "a string", dict: "an object", list: "a list"}
+
+
+def manifest_problem(manifest: Any) -> str | None:
+    """What makes a parsed manifest.json unusable (wrong shape or field types), or None."""
+    if not isinstance(manifest, dict):
+        return f"manifest.json is a JSON {type(manifest).__name__}, not an object"
+    if "fingerprint" not in manifest:
+        return "manifest.json has no 'fingerprint'"
+    for key, types in _MANIFEST_TYPES.items():
+        if key in manifest and not isinstance(manifest[key], types):
+            wanted = " or ".join(_TYPE_NAMES.get(t, "null") for t in types)
+            return f"manifest.json: {key!r} must be {wanted}, not {manifest[key]!r:.60}"
+    for key in ("inputs", "skipped"):
+        for entry in manifest.get(key, []):
+            if not isinstance(entry, dict):
+                return f"manifest.json: every {key!r} entry must be an object, not {entry!r:.60}"
+    stages = manifest.get("stages") or {}
+    if not all(isinstance(k, str) and isinstance(v, str) for k, v in stages.items()):
+        return "manifest.json: 'stages' must map stage names to fingerprint strings"
+    return None
+
+
+def parse_manifest(text: str | bytes, where: str | Path) -> dict[str, Any]:
+    """Parse and check the text of a manifest.json; StoreError naming ``where`` when it is not
+    JSON or not a usable manifest (see :func:`manifest_problem`)."""
+    try:
+        manifest = json.loads(text)
+    except ValueError as exc:  # JSONDecodeError and UnicodeDecodeError
+        raise StoreError(f"unreadable manifest: {exc}", where) from None
+    problem = manifest_problem(manifest)
+    if problem is not None:
+        raise StoreError(problem, where)
+    return manifest
+
+
+_WARNED: set[str] = set()
+
+
+def warn_once(message: str) -> None:
+    """Print ``warning: message`` on stderr, once per process."""
+    if message not in _WARNED:
+        _WARNED.add(message)
+        print(f"warning: {message}", file=sys.stderr, flush=True)
+
+
 class StoreLayout:
     """Paths and pointer of one local store directory. Knows nothing about arrays or tables."""
 
@@ -118,8 +195,14 @@ class StoreLayout:
     def exists(self) -> bool:
         return self.store_file.is_file()
 
+    def check_not_a_file(self) -> None:
+        """StoreError when the store path is an existing file rather than a directory."""
+        if self.root.exists() and not self.root.is_dir():
+            raise StoreError("is a file, not a store directory", self.root)
+
     def read_pointer(self) -> dict[str, Any]:
         """Contents of store.json; a clear error when it is missing or not ours."""
+        self.check_not_a_file()
         if not self.store_file.is_file():
             raise StoreError("not a dancedata store (no store.json)", self.root)
         try:
@@ -137,6 +220,7 @@ class StoreLayout:
 
     def ensure(self) -> None:
         """Create an empty store (store.json with no latest version) if there is none."""
+        self.check_not_a_file()
         if not self.exists():
             if self.root.exists() and any(self.root.iterdir()):
                 raise StoreError(
@@ -148,17 +232,53 @@ class StoreLayout:
             self.read_pointer()
             self.versions_dir.mkdir(parents=True, exist_ok=True)
 
-    def committed_versions(self) -> list[str]:
-        """Committed version names, oldest first. A version is committed once its directory has
-        its final name and holds manifest.json (written last, before the rename)."""
+    def version_dirs(self) -> list[str]:
+        """Every ``vN`` entry of versions/, committed or damaged, oldest first."""
         if not self.versions_dir.is_dir():
             return []
-        names = [
-            entry.name
-            for entry in self.versions_dir.iterdir()
-            if _VERSION_RE.match(entry.name) and (entry / MANIFEST_FILE).is_file()
-        ]
+        names = [e.name for e in self.versions_dir.iterdir() if _VERSION_RE.match(e.name)]
         return sorted(names, key=version_number)
+
+    def version_problem(self, name: str) -> str | None:
+        """Why ``versions/<name>`` is not a usable committed version, or None when it is."""
+        folder = self.versions_dir / name
+        if not folder.is_dir():
+            return "not a directory"
+        if not (folder / MANIFEST_FILE).is_file():
+            return "version folder has no manifest.json (a damaged or half-restored version)"
+        try:
+            self.read_manifest(name)
+        except StoreError as exc:
+            return exc.problem
+        return None
+
+    def damaged_versions(self) -> list[tuple[str, str]]:
+        """(name, problem) of every ``vN`` folder that is not a usable committed version."""
+        found = []
+        for name in self.version_dirs():
+            problem = self.version_problem(name)
+            if problem is not None:
+                found.append((name, problem))
+        return found
+
+    def committed_versions(self) -> list[str]:
+        """Committed version names, oldest first. A version is committed once its directory has
+        its final name and holds a valid manifest.json (written last, before the rename).
+        Damaged ``vN`` folders are left out, each with a one-line warning on stderr."""
+        names = []
+        for name in self.version_dirs():
+            problem = self.version_problem(name)
+            if problem is None:
+                names.append(name)
+            else:
+                warn_once(f"{self.versions_dir / name}: ignored, {problem}")
+        return names
+
+    def next_version_name(self) -> str:
+        """The name of the next version: one past every ``vN`` entry, damaged ones included,
+        so a commit never collides with a folder that is already there."""
+        taken = self.version_dirs()
+        return f"v{version_number(taken[-1]) + 1 if taken else 1}"
 
     def latest(self) -> str | None:
         """The newest committed version. store.json names it; if a crash fell between the
@@ -175,6 +295,11 @@ class StoreLayout:
 
     def resolve(self, version: str | None) -> str:
         """The version to read: ``version`` if committed, else the latest; clear errors."""
+        local = isinstance(self.versions_dir, Path)  # (remote layouts list differently)
+        if local and version is not None and version in self.version_dirs():
+            problem = self.version_problem(version)
+            if problem is not None:
+                raise StoreError(f"version {version} is damaged: {problem}", self.root)
         committed = self.committed_versions()
         if version is None:
             latest = self.latest()
@@ -202,8 +327,20 @@ class StoreLayout:
         return str(self.version_dir(version) / ZARR_DIR)
 
     def read_manifest(self, version: str) -> dict[str, Any]:
+        """The version's manifest.json, checked (:func:`parse_manifest`); StoreError naming the
+        file when it is missing, unreadable or not a usable manifest."""
         path = self.version_dir(version) / MANIFEST_FILE
         try:
-            return json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as exc:
-            raise StoreError(f"unreadable manifest: {exc}", path) from None
+            stat = path.stat()
+            key = (str(path), stat.st_ino, stat.st_size, stat.st_mtime_ns)
+            if key not in _MANIFEST_CACHE:
+                if len(_MANIFEST_CACHE) > 256:
+                    _MANIFEST_CACHE.clear()
+                _MANIFEST_CACHE[key] = parse_manifest(path.read_bytes(), path)
+        except OSError as exc:
+            raise StoreError(f"unreadable manifest: {exc.strerror or exc}", path) from None
+        return copy.deepcopy(_MANIFEST_CACHE[key])  # callers may change their copy
+
+
+# Parsed manifests by (path, inode, size, mtime): listing versions reads each manifest once.
+_MANIFEST_CACHE: dict[tuple[str, int, int, int], dict[str, Any]] = {}

@@ -17,6 +17,7 @@ deleting ``STORE/.lock``) clears it once you know it is dead.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import secrets
@@ -33,6 +34,15 @@ from dancedata.errors import StoreError
 LOCK_FILE = ".lock"
 GUARD_FILE = ".lock.guard"
 _POLL_S = 0.2
+# link(2) failures that mean "this filesystem has no hard links" (then O_EXCL is used instead)
+_NO_LINK_ERRNOS = {
+    errno.EPERM,
+    errno.EXDEV,
+    errno.EMLINK,
+    errno.ENOSYS,
+    getattr(errno, "ENOTSUP", errno.EOPNOTSUPP),
+    errno.EOPNOTSUPP,
+}
 _FRESH_S = 5.0
 
 
@@ -175,23 +185,36 @@ def _remove_orphan_temps(root: Path) -> None:
 def _create_exclusive(path: Path, record: dict[str, Any]) -> bool:
     """Make ``path`` hold ``record``, all at once, only if it does not exist. True on success."""
     tmp = path.with_name(_tmp_name(path.name, record))
-    with open(tmp, "w", encoding="utf-8") as handle:
-        json.dump(record, handle)
-        handle.flush()
-        os.fsync(handle.fileno())
+    try:
+        with open(tmp, "w", encoding="utf-8") as handle:
+            json.dump(record, handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+    except BaseException:
+        # full disk, read-only store, interrupt: leave no temporary behind, then report
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
     try:
         os.link(tmp, path)
     except FileExistsError:
         return False
-    except OSError:
+    except OSError as exc:
+        if exc.errno not in _NO_LINK_ERRNOS:
+            raise  # full, read-only, no permission: the fallback would fail the same way
         # Filesystems without hard links: O_EXCL create, then write (a reader may briefly see
         # an empty file, which read_holder reports rather than clears).
         try:
             fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
         except FileExistsError:
             return False
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            json.dump(record, handle)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as handle:
+                json.dump(record, handle)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                path.unlink()  # ours, half-written: never leave it to block other writers
+            raise
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()

@@ -47,6 +47,7 @@ from dancedata.store.layout import (
     VERSIONS_DIR,
     ZARR_DIR,
     StoreLayout,
+    parse_manifest,
     parse_pointer,
     version_number,
 )
@@ -151,9 +152,10 @@ class RemoteLayout(StoreLayout):
     def read_manifest(self, version: str) -> dict[str, Any]:
         path = self.key(VERSIONS_DIR, version, MANIFEST_FILE)
         try:
-            return json.loads(self.fs.cat_file(path))
-        except (OSError, ValueError) as exc:
+            text = self.fs.cat_file(path)
+        except OSError as exc:
             raise StoreError(f"unreadable manifest: {exc}", self.url_of(path)) from None
+        return parse_manifest(text, self.url_of(path))
 
     # -- reading files of a version ------------------------------------------------------------
     def has_file(self, version: str, rel: str) -> bool:
@@ -242,7 +244,9 @@ class RemoteVersionWriter(VersionWriter):
 
     def __init__(self, store: str | Path, **kwargs: Any) -> None:
         super().__init__(store, **kwargs)
-        self._lock = RemoteLock(self.layout, wait=kwargs.get("wait_for_lock", False))
+        self._lock = kwargs.get("lock") or RemoteLock(
+            self.layout, wait=kwargs.get("wait_for_lock", False)
+        )
 
     @property
     def fs(self) -> Any:

@@ -8,6 +8,19 @@ leaves the previous versions untouched; the temporary directory is removed by th
 A new version starts as a copy of its parent. Data files (zarr chunks, parquet) are hard-linked,
 since committed versions are immutable and zarr replaces files by rename rather than rewriting
 them; metadata files are copied so that updating them never touches the parent.
+
+No lost update: a command that derives a version from another (featurize, segment) must choose
+its parent, compute its fingerprint and check whether its result already exists *while holding
+the store lock*, not before waiting for it; otherwise a writer that waited behind another one
+commits a child of a version that is no longer the latest, or a second copy of the result the
+other one just committed. :func:`hold_store_lock` takes the lock first; the plan is made under it
+and handed to :class:`VersionWriter` with ``lock=``. As a last line of defence, a writer that
+finds its fingerprint already committed once it holds the lock commits nothing and returns that
+version instead (``VersionWriter.existing``).
+
+Storage failures (full disk, read-only file system, no permission; see
+:func:`dancedata.store.fs.storage_error`) end the write with one StoreError naming the store,
+after the temporary version is removed and the lock released.
 """
 
 from __future__ import annotations
@@ -16,14 +29,15 @@ import datetime as _dt
 import os
 import secrets
 import shutil
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dancedata._version import __version__
 from dancedata.errors import DancedataError, StoreError
 from dancedata.store.build import BUILD_DIR, PREPARED_FILE, BuildArea
-from dancedata.store.fs import is_remote
+from dancedata.store.fs import is_remote, storage_error
 from dancedata.store.integrity import record_checksums
 from dancedata.store.layout import (
     MANIFEST_FILE,
@@ -32,7 +46,6 @@ from dancedata.store.layout import (
     ZARR_DIR,
     StoreLayout,
     fsync_dir,
-    version_number,
     write_json_atomic,
 )
 from dancedata.store.lock import StoreLock
@@ -90,6 +103,37 @@ def clean_abandoned_temps(layout: StoreLayout, keep: str | None = None) -> list[
     return removed
 
 
+@contextmanager
+def hold_store_lock(store: str | Path, *, wait: bool = False) -> Iterator[Any]:
+    """Hold the writer lock of an existing store for the block (local or remote); plan the new
+    version inside the block and pass the lock to :class:`VersionWriter` (``lock=``), which
+    releases it at commit. Storage failures become one StoreError naming the store."""
+    layout = StoreLayout(store)
+    layout.read_pointer()  # a clear error for a missing store or a file, before any lock file
+    if is_remote(store):
+        from dancedata.store.remote import RemoteLock
+
+        lock: Any = RemoteLock(layout, wait=wait)  # type: ignore[arg-type]
+    else:
+        lock = StoreLock(layout.root, wait=wait)
+    try:
+        try:
+            lock.acquire()
+        except OSError as exc:
+            error = storage_error(exc, store, "taking the store lock")
+            if error is None:
+                raise
+            raise error from None
+        yield lock
+    except OSError as exc:
+        error = storage_error(exc, store, "preparing a new version")
+        if error is None:
+            raise
+        raise error from None
+    finally:
+        lock.release()
+
+
 class VersionWriter:
     """One new version in the making. Use as a context manager::
 
@@ -116,6 +160,7 @@ class VersionWriter:
         stage: str | None = None,
         parent_stages: dict[str, str] | None = None,
         resumable: bool = False,
+        lock: Any = None,
     ) -> None:
         self.layout = StoreLayout(store)
         # Which fingerprint produced each stage of this version's data ("ingest", "featurize",
@@ -132,8 +177,12 @@ class VersionWriter:
         self.drop = set(drop)
         self.skipped: list[dict[str, str]] = []
         self.cleaned_temps: list[str] = []
-        self._lock = StoreLock(self.layout.root, wait=wait_for_lock)
+        # ``lock``: one the caller already holds (see hold_store_lock); released at commit.
+        self._lock = lock if lock is not None else StoreLock(self.layout.root, wait=wait_for_lock)
         self.tmp: Path | None = None
+        # The committed version that already holds this fingerprint, found under the lock (a
+        # writer that waited behind one producing the same result): commit() then adds nothing.
+        self.existing: str | None = None
         self.committed_as: str | None = None
         self._zarr_group: zarr.Group | None = None
         # resume (issue 8.1): the temporary directory is named from the fingerprint; a run that
@@ -156,9 +205,16 @@ class VersionWriter:
 
     # -- lifecycle -----------------------------------------------------------------------------
     def __enter__(self) -> VersionWriter:
-        self.layout.ensure()
-        self._lock.acquire()
         try:
+            self.layout.ensure()
+            self._lock.acquire()
+        except OSError as exc:
+            error = storage_error(exc, self.layout.root, "opening the store for writing")
+            if error is None:
+                raise
+            raise error from None
+        try:
+            self.existing = find_version_with_fingerprint(self.layout.root, self.fingerprint)
             name = self.temp_name()
             self.cleaned_temps = clean_abandoned_temps(self.layout, keep=name)
             self.tmp = self.layout.versions_dir / name
@@ -172,14 +228,30 @@ class VersionWriter:
                 _link_or_copy_tree(
                     self.layout.version_dir(self.parent), self.tmp, {MANIFEST_FILE, *self.drop}
                 )
-        except BaseException:
-            self._discard()
+        except BaseException as exc:
+            error = storage_error(exc, self.layout.root, "preparing a new version")
+            self._discard(error or exc)
+            if error is not None:
+                raise error from None
             raise
         return self
 
     def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
+        error = storage_error(exc, self.layout.root, "writing a new version")  # type: ignore[arg-type]
         if self.committed_as is None:
-            self._discard(exc)
+            self._discard(error or exc)
+            if error is not None:
+                raise StoreError(
+                    f"{error.problem}; nothing was committed, the temporary version was removed",
+                    error.path,
+                ) from None
+        else:
+            self._lock.release()
+            if error is not None:
+                raise StoreError(
+                    f"{error.problem} after version {self.committed_as} was committed",
+                    error.path,
+                ) from None
 
     def _keep_for_resume(self, exc: object) -> bool:
         """A resumable build survives a crash or interrupt (the next run with the same
@@ -187,9 +259,11 @@ class VersionWriter:
         return self.resumable and exc is not None and not isinstance(exc, DancedataError)
 
     def _discard(self, exc: object = None) -> None:
-        if self.tmp is not None and self.tmp.exists() and not self._keep_for_resume(exc):
-            shutil.rmtree(self.tmp, ignore_errors=True)
-        self._lock.release()
+        try:
+            if self.tmp is not None and self.tmp.exists() and not self._keep_for_resume(exc):
+                shutil.rmtree(self.tmp, ignore_errors=True)
+        finally:
+            self._lock.release()
 
     # -- resumable builds ----------------------------------------------------------------------
     def build_area(self) -> BuildArea:
@@ -273,6 +347,11 @@ class VersionWriter:
         """Consolidate metadata, write manifest.json, rename into place, move store.json."""
         if self.committed_as is not None:
             return self.committed_as
+        if self.existing is not None:
+            # Another writer committed this very result while this one waited for the lock.
+            self._discard()
+            self.committed_as = self.existing
+            return self.existing
         zarr_path = self.path / ZARR_DIR
         if zarr_path.exists():
             import warnings
@@ -284,8 +363,7 @@ class VersionWriter:
                 # opens and readers that ignore it still work.
                 warnings.simplefilter("ignore", category=UserWarning)
                 zarr.consolidate_metadata(str(zarr_path))
-        committed = self.layout.committed_versions()
-        name = f"v{version_number(committed[-1]) + 1 if committed else 1}"
+        name = self.layout.next_version_name()  # past damaged folders too: never collides
         manifest = self.manifest(name, counts)
         # integrity (issue 8): checksums.json of every data file, written just before the manifest
         record_checksums(self.path, self.layout.version_dir(self.parent) if self.parent else None)
@@ -303,8 +381,10 @@ class VersionWriter:
             shutil.rmtree(spent, ignore_errors=True)
         self.committed_as = name
         self.tmp = final
-        self.layout.write_pointer(name)
-        self._lock.release()
+        try:
+            self.layout.write_pointer(name)  # (a reader finds vN even if this fails)
+        finally:
+            self._lock.release()
         return name
 
 
