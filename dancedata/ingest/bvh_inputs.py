@@ -22,9 +22,10 @@ from pathlib import Path
 
 from dancedata.errors import InputError
 
-__all__ = ["MANIFEST_COLUMNS", "BvhInput", "resolve_inputs"]
+__all__ = ["MANIFEST_COLUMNS", "MAX_MANIFEST_BYTES", "BvhInput", "resolve_inputs"]
 
 MANIFEST_COLUMNS = ("bvh", "music", "bpm", "genre", "split")
+MAX_MANIFEST_BYTES = 64 * 2**20
 _SPLITS = ("train", "val", "test")
 
 
@@ -61,12 +62,28 @@ def _cell(row: dict[str, str | None], key: str) -> str | None:
 
 
 def read_manifest(path: Path) -> list[BvhInput]:
-    """Rows of a manifest CSV (see the module docstring)."""
+    """Rows of a manifest CSV (see the module docstring); at most MAX_MANIFEST_BYTES, UTF-8."""
     try:
+        size = path.stat().st_size
+        if size > MAX_MANIFEST_BYTES:
+            raise InputError(
+                f"manifest is {size:,} bytes, more than the {MAX_MANIFEST_BYTES // 2**20} MiB "
+                "a list of BVH files can need",
+                path,
+            )
         text = path.read_text(encoding="utf-8-sig")
     except OSError as exc:
         raise InputError(f"cannot read manifest: {exc.strerror or exc}", path) from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"manifest is not UTF-8 text (byte {exc.start})", path) from None
     reader = csv.DictReader(text.splitlines())
+    try:
+        return _manifest_rows(reader, path)
+    except csv.Error as exc:
+        raise InputError(f"line {reader.line_num + 1}: not a CSV row: {exc}", path) from None
+
+
+def _manifest_rows(reader: csv.DictReader, path: Path) -> list[BvhInput]:
     columns = [c.strip() for c in reader.fieldnames or []]
     if "bvh" not in columns:
         raise InputError(f"manifest needs a 'bvh' column; columns: {columns}", path)

@@ -27,6 +27,7 @@ import math
 import os
 import re
 import warnings
+from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -44,6 +45,19 @@ from dancedata.compute.resample import (
     resample_quaternions,
 )
 from dancedata.errors import InputError
+from dancedata.io.bvh_head import (
+    FRAME_TIME_RANGE_S,
+    MAX_DEPTH,
+    MAX_END_SITES,
+    MAX_JOINTS,
+    MAX_LINE_BYTES,
+    MAX_NAME_CHARS,
+    HeadBytes,
+    Words,
+    decode,
+    read_head,
+    shown,
+)
 
 __all__ = [
     "CHANNEL_NAMES",
@@ -80,12 +94,17 @@ _AXIS = {"x": 0, "y": 1, "z": 2}
 
 # A BVH number: optional sign, digits with an optional point (``1.``, ``.5``, ``+3``), optional
 # exponent. Anything else, including two numbers glued together, is rejected.
-_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+# Possessive quantifiers: no backtracking, so a 10,000-digit word ending in "x" is refused in
+# microseconds (the plain pattern took 5 s on it, quadratic in its length).
+_NUMBER = re.compile(r"[+-]?+(?:[0-9]++\.?+[0-9]*+|\.[0-9]++)(?:[eE][+-]?+[0-9]++)?+")
 _GLUE_SPLIT = re.compile(r"(?<=[0-9.])(?=[+-])")
-_MOTION_LINE = re.compile(rb"(?im)^[ \t]*MOTION[ \t]*\r?$")
 _FRAMES_LINE = re.compile(r"(?i)^\s*frames\s*:\s*(\S*)\s*$")
 _FRAME_TIME_LINE = re.compile(r"(?i)^\s*frame\s*time\s*:\s*(\S*)\s*$")
 _MOTION_ALLOWED = b"0123456789+-.eE \t\r\n"
+_BLANK_RUN = re.compile(rb"\s*")
+_MAX_FRAME_DIGITS = 18
+_MAX_ROW_CHARS_PER_VALUE = 64  # a longer first row sends the block to the strict path
+_VALUE = re.compile(rb"\S+")
 _STRUCTURE_WORDS = {"{", "}", "offset", "channels", "joint", "end", "root", "hierarchy", "motion"}
 
 
@@ -270,88 +289,84 @@ class BvhClip:
 # Reader
 
 
+@dataclass(frozen=True, eq=False)
+class _Head:
+    """What the head of a file says: the skeleton, the column permutation file → joint order
+    (None when the CHANNELS lines are in joint order), the frame count and time, and where the
+    frame rows start (byte offset into the file, line number)."""
+
+    skeleton: BvhSkeleton
+    column_order: np.ndarray | None
+    n_frames: int
+    frame_time_s: float
+    data_start: int
+    data_line: int
+
+
 def read_bvh(path: str | Path) -> BvhClip:
-    """Read a BVH file. Raises InputError (with the line number) on malformed input."""
+    """Read a BVH file. Raises InputError (with the line number) on malformed input.
+
+    The head is read in growing prefixes (see :mod:`dancedata.io.bvh_head`), so a file that is
+    not BVH fails having read little of it; the frame rows are then read in one piece."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        with path.open("rb") as handle:
+            prefix, head = read_head(handle, lambda data, at_eof: _file_head(data, at_eof, path))
+            if head is None:  # classic Mac line endings, or a stream: parse the whole file
+                return parse_bvh(prefix + handle.read(), path=path)
+            handle.seek(head.data_start)
+            del prefix
+            block = handle.read()
     except OSError as exc:
         raise InputError(f"cannot read BVH file: {exc.strerror or exc}", path) from exc
-    return parse_bvh(data, path=path)
+    return _clip(head, block, path)
+
+
+def _file_head(data: bytearray, at_eof: bool, path: Path) -> _Head | None:
+    """The head parsed from a prefix of the file, or None when the file must be parsed whole:
+    its first bytes have CR but no LF line endings (converted by :func:`parse_bvh`)."""
+    if b"\n" not in data and b"\r" in data:
+        return None
+    return _parse_head(HeadBytes(data, at_eof, path), path)
 
 
 def parse_bvh(data: bytes | str, path: str | Path | None = None) -> BvhClip:
     """Parse BVH content (bytes or text); ``path`` is only used in error messages."""
     if isinstance(data, str):
         data = data.encode("utf-8")
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
+    data = bytes(data)
     if b"\n" not in data and b"\r" in data:  # classic Mac line endings
         data = data.replace(b"\r", b"\n")
-    if not data.strip():
+    head = _parse_head(HeadBytes(data, True, path), path)
+    return _clip(head, data[head.data_start :], path)
+
+
+def _clip(head: _Head, block: bytes, path: str | Path | None) -> BvhClip:
+    values = _parse_motion_values(
+        block, head.skeleton.n_channels, head.n_frames, head.data_line, path
+    )
+    if head.column_order is not None:
+        values = values[:, head.column_order]
+    return BvhClip(skeleton=head.skeleton, frame_time_s=head.frame_time_s, values=values)
+
+
+def _parse_head(src: HeadBytes, path: str | Path | None) -> _Head:
+    """HIERARCHY, MOTION, Frames and Frame Time, from ``src`` (raises NeedMore when it is a
+    prefix that ends too soon)."""
+    start = 3 if src.data.startswith(b"\xef\xbb\xbf") else 0
+    if src.complete and src.is_blank(start):
         raise InputError("empty file, not a BVH file", path)
-
-    match = _MOTION_LINE.search(data)
-    header_bytes = data[: match.start()] if match else data
-    header = _decode(header_bytes)
-    skeleton, column_order = _parse_hierarchy(header.split("\n"), path)
-    if match is None:
-        last = header.count("\n") + 1
-        raise InputError(f"line {last}: file ends without a MOTION section", path)
-
-    motion_line = header.count("\n") + 1
+    words = Words(src, start)
+    skeleton, column_order = _parse_hierarchy(words, path)
+    if words.motion_end is None:
+        raise InputError(f"line {words.last_line}: file ends without a MOTION section", path)
+    motion_line = words.last_line
     n_frames, frame_time, data_start, data_line = _parse_motion_header(
-        data, match.end(), motion_line, path
+        src, words.motion_end, motion_line, path
     )
     if skeleton.n_channels == 0:
         raise InputError(f"line {motion_line}: the hierarchy declares no channels", path)
-    values = _parse_motion_values(data[data_start:], skeleton.n_channels, n_frames, data_line, path)
-    if column_order is not None:
-        values = values[:, column_order]
-    return BvhClip(skeleton=skeleton, frame_time_s=frame_time, values=values)
-
-
-def _decode(raw: bytes) -> str:
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
-
-
-class _Tokens:
-    """Whitespace tokens of the header, each with its 1-based line number. Lines are split only
-    when reached, so a non-BVH file fails fast however long it is."""
-
-    def __init__(self, lines: list[str]) -> None:
-        self.lines = lines
-        self.line_index = 0  # next line to split
-        self.items: list[tuple[str, int]] = []
-        self.pos = 0
-        self.last_line = max(len(lines), 1)
-
-    def _fill(self) -> bool:
-        while self.pos >= len(self.items) and self.line_index < len(self.lines):
-            number = self.line_index + 1
-            self.items = [(tok, number) for tok in self.lines[self.line_index].split()]
-            self.pos = 0
-            self.line_index += 1
-        return self.pos < len(self.items)
-
-    def peek(self) -> tuple[str, int] | None:
-        return self.items[self.pos] if self._fill() else None
-
-    def next(self) -> tuple[str, int] | None:
-        item = self.peek()
-        self.pos += item is not None
-        return item
-
-    def rest_of_line(self, line: int) -> list[str]:
-        """Consume and return the remaining tokens on ``line``."""
-        out = []
-        while self.pos < len(self.items) and self.items[self.pos][1] == line:
-            out.append(self.items[self.pos][0])
-            self.pos += 1
-        return out
+    return _Head(skeleton, column_order, n_frames, frame_time, data_start, data_line)
 
 
 class _Joint:
@@ -364,12 +379,11 @@ class _Joint:
         self.ends: list[list[float]] = []
 
 
-def _parse_hierarchy(
-    lines: list[str], path: str | Path | None
-) -> tuple[BvhSkeleton, np.ndarray | None]:
-    """Tokenise and parse HIERARCHY ... (up to MOTION). Returns the skeleton and, when the
-    CHANNELS declarations are not in joint order, the column permutation file → joint order."""
-    toks = _Tokens(lines)
+def _parse_hierarchy(toks: Words, path: str | Path | None) -> tuple[BvhSkeleton, np.ndarray | None]:
+    """Parse HIERARCHY ... (up to MOTION) from the word stream. Returns the skeleton and, when
+    the CHANNELS declarations are not in joint order, the column permutation file → joint
+    order. Refuses more than MAX_JOINTS joints, MAX_END_SITES End Sites, chains deeper than
+    MAX_DEPTH joints and names longer than MAX_NAME_CHARS (see :mod:`dancedata.io.bvh_head`)."""
 
     def fail(line: int, problem: str) -> InputError:
         return InputError(f"line {line}: {problem}", path)
@@ -378,19 +392,28 @@ def _parse_hierarchy(
     if first is None:
         raise InputError("no HIERARCHY found, not a BVH file", path)
     if first[0].upper() != "HIERARCHY":
-        raise fail(first[1], f"expected HIERARCHY, found {first[0]!r} (not a BVH file?)")
+        raise fail(first[1], f"expected HIERARCHY, found {shown(first[0])} (not a BVH file?)")
     root = toks.next()
     if root is None or root[0].upper() != "ROOT":
         line = root[1] if root else first[1]
-        found = repr(root[0]) if root else "end of header"
+        found = shown(root[0]) if root else "end of header"
         raise fail(line, f"expected ROOT, found {found}")
 
     joints: list[_Joint] = []
     declared: list[int] = []  # joint indices in the order their CHANNELS lines appear
     seen_names: dict[str, int] = {}
+    n_end_sites = 0
 
     def open_joint(keyword_line: int, parent: int) -> int:
-        words = toks.rest_of_line(keyword_line)
+        if len(joints) >= MAX_JOINTS:
+            raise fail(keyword_line, f"more than {MAX_JOINTS:,} joints (the reader's limit)")
+        words, too_long = toks.rest_of_line(keyword_line)
+        if too_long:
+            raise fail(
+                keyword_line,
+                f"joint name longer than {MAX_NAME_CHARS:,} characters, starting "
+                f"{' '.join(words)[:40]!r}... (line breaks missing?)",
+            )
         brace_on_line = bool(words) and words[-1] == "{"
         if brace_on_line:
             words = words[:-1]
@@ -398,22 +421,24 @@ def _parse_hierarchy(
         if not name:
             raise fail(keyword_line, "joint without a name")
         if "{" in name or "}" in name:
-            raise fail(keyword_line, f"joint name {name!r} contains a brace (missing line break?)")
+            raise fail(
+                keyword_line, f"joint name {shown(name)} contains a brace (missing line break?)"
+            )
         if name in seen_names:
             raise fail(
                 keyword_line,
-                f"duplicate joint name {name!r} (first on line {seen_names[name]})",
+                f"duplicate joint name {shown(name)} (first on line {seen_names[name]})",
             )
         seen_names[name] = keyword_line
         joints.append(_Joint(name, parent, keyword_line))
         if not brace_on_line:
-            expect_brace(keyword_line, f"joint {name!r}")
+            expect_brace(keyword_line, f"joint {shown(name)}")
         return len(joints) - 1
 
     def expect_brace(line: int, what: str) -> None:
         tok = toks.next()
         if tok is None or tok[0] != "{":
-            found = repr(tok[0]) if tok else "end of header"
+            found = shown(tok[0]) if tok else "end of header"
             raise fail(tok[1] if tok else line, f"expected '{{' after {what}, found {found}")
 
     def read_numbers(line: int, count: int, what: str) -> list[float]:
@@ -429,8 +454,14 @@ def _parse_hierarchy(
     def read_channels(line: int, joint: _Joint) -> None:
         tok = toks.next()
         if tok is None or not re.fullmatch(r"[0-9]+", tok[0]):
-            found = repr(tok[0]) if tok else "nothing"
+            found = shown(tok[0]) if tok else "nothing"
             raise fail(line, f"CHANNELS needs a channel count, found {found}")
+        if len(tok[0]) > 3 or int(tok[0]) > len(CHANNEL_NAMES):
+            raise fail(
+                line,
+                f"CHANNELS declares {shown(tok[0], 12)} channels, a joint has at most "
+                f"{len(CHANNEL_NAMES)}",
+            )
         count = int(tok[0])
         names: list[str] = []
         for _ in range(count):
@@ -442,17 +473,21 @@ def _parse_hierarchy(
             if canonical is None:
                 raise fail(
                     nxt[1],
-                    f"unknown channel {nxt[0]!r} (expected one of {', '.join(CHANNEL_NAMES)})",
+                    f"unknown channel {shown(nxt[0])} (expected one of {', '.join(CHANNEL_NAMES)})",
                 )
             if canonical in names:
-                raise fail(nxt[1], f"channel {canonical} listed twice for joint {joint.name!r}")
+                raise fail(
+                    nxt[1], f"channel {canonical} listed twice for joint {shown(joint.name)}"
+                )
             names.append(canonical)
-        extra = toks.rest_of_line(line)
-        if extra:
-            raise fail(line, f"CHANNELS declares {count} channels but lists {count + len(extra)}")
+        extra, more = toks.rest_of_line(line)
+        if extra or more:
+            listed = f"more than {count + len(extra)}" if more else f"{count + len(extra)}"
+            raise fail(line, f"CHANNELS declares {count} channels but lists {listed}")
         joint.channels = names
 
-    # Stack of open blocks: a joint index, or ("end", joint index, line) for an End Site.
+    # Stack of open blocks: a joint index, or ("end", joint index, line) for an End Site. An
+    # End Site holds no joint, so the joints on the stack are the chain from the root.
     stack: list = [open_joint(root[1], -1)]
     end_offset: list[float] | None = None
     while stack:
@@ -465,7 +500,8 @@ def _parse_hierarchy(
             j = joints[top]
             raise fail(
                 toks.last_line,
-                f"hierarchy ends before joint {j.name!r} (line {j.line}) is closed: missing '}}'",
+                f"hierarchy ends before joint {shown(j.name)} (line {j.line}) is closed: "
+                "missing '}'",
             )
         word, line = tok
         key = word.upper()
@@ -479,7 +515,7 @@ def _parse_hierarchy(
             else:
                 j = joints[top]
                 if j.offset is None:
-                    raise fail(line, f"joint {j.name!r} (line {j.line}) has no OFFSET")
+                    raise fail(line, f"joint {shown(j.name)} (line {j.line}) has no OFFSET")
         elif key == "OFFSET":
             nums = read_numbers(line, 3, "OFFSET")
             if in_end:
@@ -488,36 +524,44 @@ def _parse_hierarchy(
                 end_offset = nums
             else:
                 if joints[top].offset is not None:
-                    raise fail(line, f"joint {joints[top].name!r} has a second OFFSET")
+                    raise fail(line, f"joint {shown(joints[top].name)} has a second OFFSET")
                 joints[top].offset = nums
         elif key == "CHANNELS" and not in_end:
             if joints[top].channels is not None:
-                raise fail(line, f"joint {joints[top].name!r} has a second CHANNELS line")
+                raise fail(line, f"joint {shown(joints[top].name)} has a second CHANNELS line")
             read_channels(line, joints[top])
             declared.append(top)
         elif key == "JOINT" and not in_end:
+            if len(stack) >= MAX_DEPTH:
+                raise fail(
+                    line,
+                    f"the hierarchy nests deeper than {MAX_DEPTH:,} joints (the reader's limit)",
+                )
             stack.append(open_joint(line, top))
         elif key == "END" and not in_end:
             site = toks.next()
             if site is None or site[0].upper() != "SITE":
                 raise fail(line, "expected 'End Site'")
-            rest = toks.rest_of_line(site[1])
-            if rest and rest != ["{"]:
-                raise fail(line, f"unexpected {' '.join(rest)!r} after End Site")
+            rest, more = toks.rest_of_line(site[1], max_chars=40)
+            if more or rest and rest != ["{"]:
+                raise fail(line, f"unexpected {shown(' '.join(rest))} after End Site")
             if not rest:
                 expect_brace(line, "End Site")
+            n_end_sites += 1
+            if n_end_sites > MAX_END_SITES:
+                raise fail(line, f"more than {MAX_END_SITES:,} End Sites (the reader's limit)")
             stack.append(("end", top, line))
         elif key == "ROOT":
             raise fail(line, "ROOT inside another joint (missing '}'?)")
         else:
-            where = "End Site" if in_end else f"joint {joints[top].name!r}"
-            raise fail(line, f"unexpected {word!r} in {where}")
+            where = "End Site" if in_end else f"joint {shown(joints[top].name)}"
+            raise fail(line, f"unexpected {shown(word)} in {where}")
 
     extra = toks.next()
     if extra is not None:
         if extra[0].upper() == "ROOT":
             raise fail(extra[1], "a second ROOT hierarchy is not supported")
-        raise fail(extra[1], f"unexpected {extra[0]!r} after the hierarchy (expected MOTION)")
+        raise fail(extra[1], f"unexpected {shown(extra[0])} after the hierarchy (expected MOTION)")
 
     channels = [tuple(j.channels or ()) for j in joints]
     skeleton = BvhSkeleton(
@@ -557,55 +601,94 @@ def _header_number(token: str, line: int, what: str, path: str | Path | None) ->
 def _number_problem(token: str) -> str:
     parts = _GLUE_SPLIT.split(token)
     if len(parts) > 1 and all(_NUMBER.fullmatch(p) for p in parts):
-        return f"{token!r} looks like numbers glued together (missing space?)"
+        return f"{shown(token)} looks like numbers glued together (missing space?)"
     if _NUMBER.fullmatch(token):
-        return f"{token!r} is not a finite number"
-    return f"{token!r} is not a number"
+        return f"{shown(token)} is not a finite number"
+    return f"{shown(token)} is not a number"
 
 
 def _parse_motion_header(
-    data: bytes, pos: int, motion_line: int, path: str | Path | None
+    src: HeadBytes, pos: int, motion_line: int, path: str | Path | None
 ) -> tuple[int, float, int, int]:
     """Read the ``Frames:`` and ``Frame Time:`` lines after MOTION (blank lines allowed, either
-    order). Returns (frames, frame time in seconds, byte offset of the data, its line number)."""
+    order). Returns (frames, frame time in seconds, byte offset of the data, its line number).
+    Lines longer than MAX_LINE_BYTES are refused; the frame time must lie in
+    FRAME_TIME_RANGE_S."""
+    data, end = src.data, src.end
     line_no = motion_line
     frames: int | None = None
     frame_time: float | None = None
     # Invariant: pos is at the newline that ends line ``line_no`` (or at the end of data).
     while frames is None or frame_time is None:
-        if pos >= len(data):
-            missing = "Frames" if frames is None else "Frame Time"
+        missing = "Frames" if frames is None else "Frame Time"
+        if pos >= end:
+            if not src.complete:
+                src.out_of_data(line_no)
             raise InputError(f"line {line_no}: file ends before the {missing!r} line", path)
         start = pos + 1
         line_no += 1
-        nl = data.find(b"\n", start)
-        pos = len(data) if nl < 0 else nl
-        text = _decode(data[start:pos])
+        blank = _BLANK_RUN.match(data, start, end)
+        if blank.end() > start:  # skip blank lines in one step, counting them
+            if blank.end() == end and not src.complete:
+                src.out_of_data(line_no)
+            skipped = data.count(b"\n", start, blank.end())
+            if skipped:
+                line_no += skipped
+                start = data.rfind(b"\n", start, blank.end()) + 1
+        nl = data.find(b"\n", start, min(end, start + MAX_LINE_BYTES + 1))
+        if nl < 0:
+            if end - start > MAX_LINE_BYTES:
+                expected = "'Frames: N'" if frames is None else "'Frame Time: T'"
+                raise InputError(
+                    f"line {line_no}: expected {expected}, found a line of more than "
+                    f"{MAX_LINE_BYTES:,} bytes (line breaks missing?)",
+                    path,
+                )
+            if not src.complete:
+                src.out_of_data(line_no)
+        pos = end if nl < 0 else nl
+        text = decode(data[start:pos])
         if not text.strip():
             continue
         m_frames = _FRAMES_LINE.match(text)
         m_time = _FRAME_TIME_LINE.match(text)
         if m_frames and frames is None:
-            if not re.fullmatch(r"[0-9]+", m_frames.group(1)):
+            count = m_frames.group(1)
+            if not re.fullmatch(r"[0-9]+", count):
                 raise InputError(
-                    f"line {line_no}: frame count {m_frames.group(1)!r} is not a whole number",
+                    f"line {line_no}: frame count {shown(count)} is not a whole number", path
+                )
+            if len(count) > _MAX_FRAME_DIGITS:
+                raise InputError(
+                    f"line {line_no}: frame count {shown(count, 20)} is not plausible (more "
+                    f"than {_MAX_FRAME_DIGITS} digits)",
                     path,
                 )
-            frames = int(m_frames.group(1))
+            frames = int(count)
         elif m_time and frame_time is None:
-            token = m_time.group(1)
-            value = float(token) if _NUMBER.fullmatch(token) else math.nan
-            if not (math.isfinite(value) and value > 0):
-                raise InputError(
-                    f"line {line_no}: Frame Time {token!r} is not a positive number", path
-                )
-            frame_time = value
+            frame_time = _frame_time(m_time.group(1), line_no, path)
         else:
             expected = "'Frames: N'" if frames is None else "'Frame Time: T'"
             raise InputError(
-                f"line {line_no}: expected {expected}, found {text.strip()[:40]!r}", path
+                f"line {line_no}: expected {expected}, found {shown(text.strip())}", path
             )
     return frames, frame_time, min(pos + 1, len(data)), line_no + 1
+
+
+def _frame_time(token: str, line: int, path: str | Path | None) -> float:
+    """The ``Frame Time`` in seconds, refused outside FRAME_TIME_RANGE_S."""
+    value = float(token) if _NUMBER.fullmatch(token) else math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"line {line}: Frame Time {shown(token)} is not a positive number", path)
+    low, high = FRAME_TIME_RANGE_S
+    if not low <= value <= high:
+        written = token if len(token) <= 24 else shown(token, 20)
+        raise InputError(
+            f"line {line}: Frame Time {written} s is outside the accepted {low:g} to {high:g} s "
+            f"({1 / low:,.0f} to {1 / high:g} frames per second)",
+            path,
+        )
+    return value
 
 
 def _parse_motion_values(
@@ -620,7 +703,12 @@ def _parse_motion_values(
 
 def _parse_motion_fast(block: bytes, n_channels: int, n_frames: int) -> np.ndarray | None:
     """pyarrow CSV on whitespace-normalised rows. Returns None whenever the result is not
-    certainly right (odd characters, unequal rows, wrong frame count, non-finite values)."""
+    certainly right (odd characters, unequal rows, wrong frame count, non-finite values), and
+    at once when the first row is far longer than a row of ``n_channels`` numbers can be
+    (all rows on one line: the strict path names the line without copying the block)."""
+    longest_row = n_channels * _MAX_ROW_CHARS_PER_VALUE + 4096
+    if len(block) > longest_row and block.find(b"\n", 0, longest_row) < 0:
+        return None
     if block.translate(None, _MOTION_ALLOWED):
         return None
     # Normalise to single spaces between numbers, one row per line; each pass only if needed.
@@ -676,40 +764,56 @@ def _parse_motion_fast(block: bytes, n_channels: int, n_frames: int) -> np.ndarr
 def _parse_motion_strict(
     block: bytes, n_channels: int, n_frames: int, first_line: int, path: str | Path | None
 ) -> np.ndarray:
-    """Line-by-line parse that names the first offending line."""
-    rows: list[list[float]] = []
-    lines = block.split(b"\n")
+    """Line-by-line parse that names the first offending line. Reads at most
+    ``n_channels + 1`` values of a line, so a file whose rows are all on one line fails at
+    once."""
+    values = array("d")
+    n_rows = 0
+    line = first_line
     last_line = first_line - 1  # the Frame Time line until a frame is read
-    for k, raw in enumerate(lines):
-        tokens = raw.split()
-        if not tokens:
-            continue
-        line = first_line + k
+    pos, size = 0, len(block)
+    while (first := _VALUE.search(block, pos)) is not None:
+        line += block.count(b"\n", pos, first.start())
+        eol = block.find(b"\n", first.start())
+        eol = size if eol < 0 else eol
         last_line = line
-        if len(rows) == n_frames:
+        if n_rows == n_frames:
             raise InputError(
                 f"line {line}: more frame lines than 'Frames: {n_frames}' declares", path
             )
         row = []
-        for tok in tokens:
-            text = tok.decode("latin-1")
+        for match in _VALUE.finditer(block, first.start(), eol):
+            if len(row) == n_channels:
+                break
+            text = match.group().decode("latin-1")
             if not _NUMBER.fullmatch(text) or not math.isfinite(value := float(text)):
                 raise InputError(f"line {line}: {_number_problem(text)}", path)
             row.append(value)
-        if len(row) != n_channels:
+        else:
+            match = None
+        if match is not None or len(row) != n_channels:
             raise InputError(
-                f"line {line}: frame {len(rows) + 1} has {len(row)} values, "
-                f"the hierarchy declares {n_channels} channels",
+                f"line {line}: frame {n_rows + 1} has {_count_values(block, first.start(), eol)}"
+                f" values, the hierarchy declares {n_channels} channels",
                 path,
             )
-        rows.append(row)
-    if len(rows) < n_frames:
+        values.extend(row)
+        n_rows += 1
+        pos = eol
+    if n_rows < n_frames:
         raise InputError(
-            f"line {last_line}: file ends after {len(rows)} of {n_frames} "
+            f"line {last_line}: file ends after {n_rows} of {n_frames} "
             "frames (truncated, or wrong 'Frames:' count)",
             path,
         )
-    return np.array(rows, dtype=np.float64).reshape(n_frames, n_channels)
+    return np.frombuffer(values, dtype=np.float64).reshape(n_frames, n_channels).copy()
+
+
+def _count_values(block: bytes, start: int, stop: int) -> str:
+    """How many values a frame line holds, counted exactly up to 1 MiB of line."""
+    if stop - start <= 2**20:
+        return str(len(block[start:stop].split()))
+    return f"more than {len(block[start : start + 2**20].split()) - 1}"
 
 
 # --------------------------------------------------------------------------------------------
