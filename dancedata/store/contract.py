@@ -28,6 +28,8 @@ def _arrow_type(name: str) -> pa.DataType:
         "float64": pa.float64(),
         "float32": pa.float32(),
         "int64": pa.int64(),
+        "int32": pa.int32(),
+        "int16": pa.int16(),
         "bool": pa.bool_(),
     }[name]
 

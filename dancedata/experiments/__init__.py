@@ -1,0 +1,14 @@
+"""The experiment layer: keyframe selection, in-betweening and their error measures.
+
+Specification: ``EXPERIMENTS.md`` (the shared research-layer spec). Everything here is a pure
+array function, vectorised over measures; reading a store and writing results live in
+:mod:`dancedata.pipeline` and the CLI.
+
+- :mod:`dancedata.experiments.keyframes` — ``even``, ``peaks:*`` and ``dp`` keyframes (§2).
+- :mod:`dancedata.experiments.keyframes_peaks` — peak picking over 1-d curves (§2.3).
+- :mod:`dancedata.experiments.keyframes_dp` — Roberts' Salient Poses minimax DP (§2.4).
+- :mod:`dancedata.experiments.inbetween` — segment maps, linear translation + SLERP (§3.1) and
+  the 75-d Euler / 225-d rotation-matrix output layouts.
+- :mod:`dancedata.experiments.bezier` — cubic Bézier in-betweening, oracle and train-mean (§3.2).
+- :mod:`dancedata.experiments.reconstruction_error` — the MSE of §4.1 (one named convention).
+"""

@@ -1,0 +1,471 @@
+"""``dancedata keyframes``: the keyframes table of every measure, as a new version.
+
+Reads the measures table, the 75-d Euler rows (``motion/trans`` + ``motion/euler``) and the
+audio curves of a version, runs the requested strategies at every requested N with the pure
+functions of :mod:`dancedata.experiments.keyframes`, and writes ``keyframes.parquet`` (one row
+per keyframe, EXPERIMENTS.md §2.5) into a new version. Measures are grouped by length and each
+group is selected in one batch; the only per-sequence loop assembles the audio curves.
+
+The strategies, N values and every [CHOICE] parameter are the command's config: recorded in the
+manifest and hashed into the fingerprint with the data the result derives from (the ingest,
+featurize and segment stages), so running it again with the same settings writes nothing.
+Each (strategy, N) has its own ``run_id`` in the table: a hash of the strategy, N, the
+parameters that strategy uses, and the same data stages.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dancedata._version import __version__
+from dancedata.errors import InputError, StoreError
+from dancedata.experiments.keyframes import (
+    STRATEGIES,
+    KeyframeParams,
+    canonical_strategy,
+    even_batch,
+)
+from dancedata.experiments.keyframes_dp import dp_keyframes_batch
+from dancedata.experiments.keyframes_peaks import DP, KEYFRAME_SOURCES, peak_keyframes_batch
+from dancedata.ingest.result import CommandResult
+from dancedata.store.checksums import fingerprint
+from dancedata.store.layout import StoreLayout
+from dancedata.store.reader import VersionReader
+from dancedata.store.writer import VersionWriter, already_done
+
+DATA_STAGES = ("ingest", "featurize", "segment")
+# Measures per DP batch: bounds memory to about batch × L² × 8 bytes × 3 (L = 180: 100 MB).
+DP_BATCH = 128
+
+
+@dataclass
+class KeyframesOptions:
+    strategies: list[str] = field(default_factory=lambda: ["even"])
+    n_keyframes: list[int] = field(default_factory=lambda: [3, 5, 9])
+    params: KeyframeParams = field(default_factory=KeyframeParams)
+    split: str | None = None
+    scheme: str = "crossmodal"
+    exclude_genres: list[str] = field(default_factory=list)
+    version: str | None = None
+    wait_for_lock: bool = False
+
+    def __post_init__(self) -> None:
+        seen: list[str] = []
+        for name in self.strategies:
+            strategy = canonical_strategy(name)
+            if strategy not in seen:
+                seen.append(strategy)
+        if not seen:
+            raise InputError("no keyframe strategy given")
+        self.strategies = [s for s in STRATEGIES if s in seen]
+        if not self.n_keyframes:
+            raise InputError("no keyframe count N given")
+        bad = [n for n in self.n_keyframes if n < (2 if self.params.n_counts_edges else 0)]
+        if bad:
+            raise InputError(f"keyframe counts {bad} are too small (N counts the first and last)")
+        self.n_keyframes = sorted(set(int(n) for n in self.n_keyframes))
+
+    def config(self, context: dict[str, Any]) -> dict[str, Any]:
+        return {
+            "strategies": self.strategies,
+            "n_keyframes": self.n_keyframes,
+            "params": self.params.as_dict(),
+            "split": None if self.split is None else {"scheme": self.scheme, "split": self.split},
+            "exclude_genres": sorted(self.exclude_genres),
+            **context,
+        }
+
+
+@dataclass
+class MeasureSet:
+    """The measures to select keyframes for, as parallel arrays."""
+
+    seq_id: list[str]
+    measure: np.ndarray  # measure number within its sequence
+    local_start: np.ndarray  # first frame within the sequence
+    length: np.ndarray  # L
+    motion_start: np.ndarray  # first frame in the store's motion arrays
+    audio_available: np.ndarray  # bool: the sequence's audio covers the whole measure
+    seq_index: np.ndarray  # row of the sequence in ``sequences``
+
+    def groups(self, rows: np.ndarray) -> dict[int, np.ndarray]:
+        """``rows`` (indices into this set) grouped by measure length."""
+        out: dict[int, np.ndarray] = {}
+        for length in np.unique(self.length[rows]).tolist():
+            out[int(length)] = rows[self.length[rows] == length]
+        return out
+
+
+def _measure_set(reader: VersionReader, options: KeyframesOptions) -> tuple[MeasureSet, list]:
+    if not reader.has_table("measures"):
+        raise InputError(
+            f"version {reader.version} has no measures table (run `dancedata segment` first)"
+        )
+    sequences = reader.table("sequences").to_pylist()
+    by_id = {s["seq_id"]: i for i, s in enumerate(sequences)}
+    wanted = set(by_id)
+    if options.split is not None:
+        splits = reader.table("splits").to_pylist() if reader.has_table("splits") else []
+        if not any(r["scheme"] == options.scheme for r in splits):
+            raise InputError(f"no split scheme {options.scheme!r} in version {reader.version}")
+        wanted = {
+            r["seq_id"]
+            for r in splits
+            if r["scheme"] == options.scheme and r["split"] == options.split
+        }
+    excluded = set(options.exclude_genres)
+    rows = [
+        r
+        for r in reader.table("measures").to_pylist()
+        if r["seq_id"] in wanted and sequences[by_id[r["seq_id"]]].get("genre") not in excluded
+    ]
+    music = (
+        {m["music_id"]: m for m in reader.table("music").to_pylist()}
+        if reader.has_table("music")
+        else {}
+    )
+    audio_frames = [_audio_frames(s, music) for s in sequences]
+    seq_index = np.array([by_id[r["seq_id"]] for r in rows], dtype=np.int64)
+    local = np.array([r["frame_start"] for r in rows], dtype=np.int64)
+    stop = np.array([r["frame_stop"] for r in rows], dtype=np.int64)
+    seq_start = np.array([s["frame_start"] for s in sequences], dtype=np.int64)
+    covered = np.array(audio_frames, dtype=np.int64)
+    return (
+        MeasureSet(
+            seq_id=[r["seq_id"] for r in rows],
+            measure=np.array([r["measure"] for r in rows], dtype=np.int64),
+            local_start=local,
+            length=stop - local,
+            motion_start=seq_start[seq_index] + local,
+            audio_available=stop <= covered[seq_index],
+            seq_index=seq_index,
+        ),
+        sequences,
+    )
+
+
+def _audio_frames(seq: dict[str, Any], music: dict[str, dict[str, Any]]) -> int:
+    """Frames of the sequence that have audio (as :meth:`DanceStore.audio_frames`)."""
+    if seq.get("music_missing") or seq.get("music_id") not in music:
+        return 0
+    track = music[seq["music_id"]]
+    available = track["frame_stop"] - track["frame_start"] - int(seq["audio_offset"])
+    return max(0, min(int(seq["n_frames"]), available))
+
+
+class CurveSource:
+    """The 1-d curve of a peak strategy for every sequence, concatenated, so that the curves of
+    a batch of measures are one fancy-index gather."""
+
+    def __init__(self, store: Any, sequences: list[dict[str, Any]], strategy: str,
+                 params: KeyframeParams) -> None:  # fmt: skip
+        self.offsets = np.zeros(len(sequences), dtype=np.int64)
+        pieces: list[np.ndarray] = []
+        peak_pieces: list[np.ndarray] = []
+        position = 0
+        use_detect = strategy == "peaks:onset" and params.peak_source == "onset_detect"
+        for i, seq in enumerate(sequences):
+            self.offsets[i] = position
+            seq_id = seq["seq_id"]
+            if store.audio_frames(seq_id) == 0:
+                continue
+            curve = _sequence_curve(store, seq_id, strategy, params)
+            pieces.append(np.asarray(curve, dtype=np.float64))
+            if use_detect:
+                peak_pieces.append(np.asarray(store.audio(seq_id, "onset_peaks")) > 0)
+            position += curve.shape[0]
+        self.values = np.concatenate(pieces) if pieces else np.zeros(0)
+        self.peaks = np.concatenate(peak_pieces) if use_detect and peak_pieces else None
+
+    def gather(self, seq_index: np.ndarray, local_start: np.ndarray, length: int) -> tuple:
+        idx = (self.offsets[seq_index] + local_start)[:, None] + np.arange(length)
+        peaks = None if self.peaks is None else self.peaks[idx]
+        return self.values[idx], peaks
+
+
+def _sequence_curve(store: Any, seq_id: str, strategy: str, params: KeyframeParams) -> np.ndarray:
+    if strategy == "peaks:onset":
+        return store.audio(seq_id, "onset_env")
+    if strategy == "peaks:stems":
+        return store.weighted_stem_onsets(seq_id, params.stem_weights, params.normalize)
+    return store.weighted_nmfd(seq_id, params.nmfd_weights, params.normalize)
+
+
+def _require_arrays(reader: VersionReader, strategy: str, params: KeyframeParams) -> None:
+    """One clear line when the version lacks what ``strategy`` reads."""
+    if strategy == "even":
+        return
+    if strategy == "dp":
+        needed = ["motion/trans", "motion/euler"]
+        hint = "run `dancedata featurize` (euler representation)"
+    elif strategy == "peaks:onset":
+        needed = ["audio/onset_env"]
+        if params.peak_source == "onset_detect":
+            needed.append("audio/onset_peaks")
+        hint = "run `dancedata featurize` on a store with music"
+    elif strategy == "peaks:stems":
+        needed = [
+            f"audio/stems/{stem}/onset_env"
+            for stem, weight in params.stem_weights.items()
+            if float(weight) != 0.0
+        ]
+        hint = "run `dancedata featurize --stems offline|openunmix`"
+    else:
+        needed = ["audio/nmfd_drums"]
+        hint = "run `dancedata featurize` with the nmfd audio family"
+    missing = [name for name in needed if not reader.has_array(name)]
+    if missing:
+        raise InputError(
+            f"keyframe strategy {strategy} needs {', '.join(missing)}, which version "
+            f"{reader.version} lacks ({hint})"
+        )
+
+
+class EulerRows:
+    """The measures' 75-d Euler rows (trans m + 24×3 Euler rad), read once, gathered per batch;
+    with ``euler_branch = continuous`` each sequence's curves are made continuous first."""
+
+    def __init__(self, reader: VersionReader, sequences: list[dict[str, Any]],
+                 params: KeyframeParams, order: Any) -> None:  # fmt: skip
+        self.trans = np.asarray(reader.array("motion/trans")[...], dtype=np.float64)
+        euler = np.asarray(reader.array("motion/euler")[...])
+        if params.euler_branch == "continuous":
+            euler = _continuous_euler(euler, sequences, order)
+        self.euler = euler.reshape(euler.shape[0], -1)
+
+    def gather(self, motion_start: np.ndarray, length: int) -> np.ndarray:
+        idx = motion_start[:, None] + np.arange(length)
+        return np.concatenate(
+            [self.trans[idx], self.euler[idx].astype(np.float64)], axis=2
+        )  # (M, L, 75)
+
+
+def _continuous_euler(euler: np.ndarray, sequences: list[dict[str, Any]], order: Any) -> np.ndarray:
+    from dancedata.compute.euler_continuity import euler_continuous
+
+    out = euler.astype(np.float64)
+    orders = [order] * euler.shape[1] if isinstance(order, str) else list(order)
+    for seq in sequences:
+        a, b = int(seq["frame_start"]), int(seq["frame_stop"])
+        for one in set(orders):
+            joints = [j for j, o in enumerate(orders) if o == one]
+            out[a:b, joints] = euler_continuous(out[a:b, joints], one)
+    return out
+
+
+@dataclass
+class Selection:
+    """The keyframes of one (strategy, N) over a set of measures."""
+
+    rows: np.ndarray  # indices into the MeasureSet, (M,)
+    indices: np.ndarray  # (M, K) local frames
+    sources: np.ndarray  # (M, K) int8 codes
+    scores: np.ndarray  # (M, K)
+
+
+def _select(
+    strategy: str,
+    measures: MeasureSet,
+    rows: np.ndarray,
+    options: KeyframesOptions,
+    curves: CurveSource | None,
+    euler_rows: EulerRows | None,
+) -> dict[int, list[Selection]]:
+    """Every requested N of one strategy over ``rows``, batched by measure length."""
+    params = options.params
+    totals = {n: params.total_keyframes(n) for n in options.n_keyframes}
+    out: dict[int, list[Selection]] = defaultdict(list)
+    for length, group in measures.groups(rows).items():
+        if strategy == "even":
+            for n, total in totals.items():
+                idx, src, score = even_batch(group.size, length, total)
+                out[n].append(Selection(group, idx, src, score))
+        elif strategy == "dp":
+            assert euler_rows is not None
+            for start in range(0, group.size, DP_BATCH):
+                part = group[start : start + DP_BATCH]
+                x = euler_rows.gather(measures.motion_start[part], length)
+                found = dp_keyframes_batch(
+                    x, sorted(set(totals.values())), params.dp_distance, params.combine
+                )
+                for n, total in totals.items():
+                    idx, _cost, score = found[total]
+                    src = np.full(idx.shape, DP, dtype=np.int8)
+                    src[:, [0, -1]] = 0
+                    out[n].append(Selection(part, idx, src, score))
+        else:
+            assert curves is not None
+            values, peaks = curves.gather(
+                measures.seq_index[group], measures.local_start[group], length
+            )
+            for n, total in totals.items():
+                idx, src, score = peak_keyframes_batch(
+                    values, total, params.guard, params.fill, peaks
+                )
+                out[n].append(Selection(group, idx, src, score))
+    return out
+
+
+def _run_id(strategy: str, n: int, params: KeyframeParams, data: dict[str, Any]) -> str:
+    config = {"strategy": strategy, "n_keyframes": n, "params": params.for_strategy(strategy)}
+    return fingerprint("keyframes-run", config, [str(v) for v in data.values()], __version__)[:16]
+
+
+def _table(selections: list[tuple[str, int, str, list[Selection]]], measures: MeasureSet) -> Any:
+    """The keyframes table (EXPERIMENTS.md §2.5) from every selection, column by column."""
+    import pyarrow as pa
+
+    columns: dict[str, list[np.ndarray]] = defaultdict(list)
+    run_ids: list[np.ndarray] = []
+    strategies: list[np.ndarray] = []
+    seq_rows: list[np.ndarray] = []
+    for run_id, n, strategy, parts in selections:
+        for sel in parts:
+            m, k = sel.indices.shape
+            rows = np.repeat(sel.rows, k)
+            seq_rows.append(rows)
+            run_ids.append(np.full(rows.size, run_id, dtype=object))
+            strategies.append(np.full(rows.size, strategy, dtype=object))
+            columns["measure"].append(measures.measure[rows])
+            columns["n_keyframes"].append(np.full(rows.size, n))
+            columns["k"].append(np.tile(np.arange(k), m))
+            columns["frame"].append(sel.indices.reshape(-1))
+            columns["frame_in_sequence"].append(
+                (measures.local_start[sel.rows][:, None] + sel.indices).reshape(-1)
+            )
+            columns["source"].append(sel.sources.reshape(-1))
+            columns["score"].append(sel.scores.reshape(-1))
+
+    def cat(name: str) -> np.ndarray:
+        return np.concatenate(columns[name]) if columns[name] else np.zeros(0)
+
+    rows = np.concatenate(seq_rows) if seq_rows else np.zeros(0, dtype=np.int64)
+    seq_ids = np.asarray(measures.seq_id, dtype=object)[rows] if rows.size else np.zeros(0)
+    names = np.asarray(KEYFRAME_SOURCES, dtype=object)
+    table = pa.table(
+        {
+            "run_id": pa.array(np.concatenate(run_ids) if run_ids else [], pa.string()),
+            "seq_id": pa.array(seq_ids, pa.string()),
+            "measure": pa.array(cat("measure").astype(np.int32), pa.int32()),
+            "strategy": pa.array(np.concatenate(strategies) if strategies else [], pa.string()),
+            "n_keyframes": pa.array(cat("n_keyframes").astype(np.int16), pa.int16()),
+            "k": pa.array(cat("k").astype(np.int16), pa.int16()),
+            "frame": pa.array(cat("frame").astype(np.int32), pa.int32()),
+            "frame_in_sequence": pa.array(cat("frame_in_sequence").astype(np.int32), pa.int32()),
+            "source": pa.array(names[cat("source").astype(np.int64)], pa.string()),
+            "score": pa.array(cat("score").astype(np.float32), pa.float32()),
+        }
+    )
+    return table
+
+
+def keyframes(store: str | Path, options: KeyframesOptions) -> CommandResult:
+    """Select keyframes for every measure and write the keyframes table as a new version."""
+    from dancedata.loader import DanceStore
+
+    layout = StoreLayout(store)
+    parent = layout.resolve(options.version)
+    reader = VersionReader(store, parent)
+    stages = reader.manifest.get("stages") or {}
+    data = {stage: stages.get(stage) for stage in DATA_STAGES}
+    if data["ingest"] is None:
+        data["ingest"] = reader.manifest["fingerprint"]
+    for strategy in options.strategies:
+        _require_arrays(reader, strategy, options.params)
+    needs_euler = "dp" in options.strategies
+    euler_order = reader.array("motion/euler").attrs.get("order") if needs_euler else None
+    if needs_euler and options.params.euler_branch == "continuous" and euler_order is None:
+        raise InputError("motion/euler has no 'order' attribute: cannot make it continuous")
+    stem_backend = (
+        reader.group_attrs("audio/stems").get("backend")
+        if "peaks:stems" in options.strategies
+        else None
+    )
+    run_ids = {
+        f"{s}@{n}": _run_id(s, n, options.params, data)
+        for s in options.strategies
+        for n in options.n_keyframes
+    }
+    context = {
+        "euler_order": euler_order,
+        "stem_backend": stem_backend,
+        "data_stages": data,
+        "run_ids": run_ids,
+        "sources": list(KEYFRAME_SOURCES),
+        "score": "curve value at peak/fill keyframes; direct segment error e(prev, k) at dp "
+        "keyframes k ≥ 1; NaN otherwise",
+    }
+    config = options.config(context)
+    fp = fingerprint("keyframes", config, [str(v) for v in data.values()], __version__)
+    existing = already_done(store, fp, reader.manifest, "keyframes")
+    if existing is not None:
+        return CommandResult(version=existing, created=False)
+
+    measures, sequences = _measure_set(reader, options)
+    loader = DanceStore(store, parent)
+    everything = np.arange(len(measures.seq_id))
+    selections: list[tuple[str, int, str, list[Selection]]] = []
+    skipped: dict[tuple[str, str], str] = {}
+    counts: dict[str, Any] = {"measures": int(everything.size), "seconds": {}}
+    min_total = options.params.total_keyframes(min(options.n_keyframes))
+    max_total = options.params.total_keyframes(max(options.n_keyframes))
+    euler_rows = None
+    for strategy in options.strategies:
+        began = time.perf_counter()
+        rows = everything[measures.length >= max_total]
+        for i in everything[measures.length < max_total].tolist():
+            skipped[(measures.seq_id[i], strategy)] = (
+                f"{strategy}: measure {int(measures.measure[i])} has {int(measures.length[i])} "
+                f"frames, fewer than N = {max_total} (min requested {min_total})"
+            )
+        curves = None
+        if strategy.startswith("peaks:"):
+            no_audio = rows[~measures.audio_available[rows]]
+            for i in no_audio.tolist():
+                key = (measures.seq_id[i], strategy)
+                skipped.setdefault(key, f"{strategy}: no audio under measure(s) of this sequence")
+            rows = rows[measures.audio_available[rows]]
+            curves = CurveSource(loader, sequences, strategy, options.params)
+        if strategy == "dp" and euler_rows is None:
+            euler_rows = EulerRows(reader, sequences, options.params, euler_order)
+        found = _select(strategy, measures, rows, options, curves, euler_rows)
+        for n in options.n_keyframes:
+            selections.append((run_ids[f"{strategy}@{n}"], n, strategy, found.get(n, [])))
+        counts["seconds"][strategy] = round(time.perf_counter() - began, 3)
+        counts[f"measures_{strategy}"] = int(rows.size)
+    table = _table(selections, measures)
+    counts["rows"] = table.num_rows
+    counts["units"] = 1
+    counts["resumed_units"] = 0
+    with VersionWriter(
+        store,
+        command="keyframes",
+        config=config,
+        fingerprint=fp,
+        inputs=[{"path": parent, "bytes": 0, "sha256": reader.manifest["fingerprint"]}],
+        parent=parent,
+        wait_for_lock=options.wait_for_lock,
+        stage="keyframes",
+        parent_stages=reader.manifest.get("stages"),
+    ) as version:
+        for (seq_id, _strategy), reason in sorted(skipped.items()):
+            version.skip(seq_id, reason)
+        version.write_table("keyframes", table)
+        name = version.commit(counts=counts)
+    return CommandResult(version=name, created=True, counts=counts, skipped=list(version.skipped))
+
+
+def read_keyframes(store: str | Path, version: str | None = None) -> Any:
+    """The keyframes table of a version (pyarrow Table); StoreError when it has none."""
+    reader = VersionReader(store, version)
+    if not reader.has_table("keyframes"):
+        raise StoreError(
+            f"version {reader.version} has no keyframes table (run `dancedata keyframes`)"
+        )
+    return reader.table("keyframes")
