@@ -8,6 +8,7 @@ from dancedata.cli import (  # noqa: F401
     ingest_bvh,
     ingest_video,
     inspect,
+    keyframes,
     plot,
     process,
     render,

@@ -116,9 +116,15 @@ def _check_columns(table: str, arrow: Any, spec: dict[str, Any]) -> list[str]:
                 problems.append(f"{table}: missing column {column}")
             continue
         actual = str(arrow.schema.field(column).type)
-        expected = {"string": "string", "float64": "double", "int64": "int64", "bool": "bool"}[
-            type_name
-        ]
+        expected = {
+            "string": "string",
+            "float64": "double",
+            "float32": "float",
+            "int64": "int64",
+            "int32": "int32",
+            "int16": "int16",
+            "bool": "bool",
+        }[type_name]
         if actual not in (expected, "null"):
             problems.append(f"{table}.{column}: type {actual}, expected {type_name}")
     for column in spec.get("unique", []):
