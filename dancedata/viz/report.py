@@ -332,7 +332,7 @@ def _gallery(store: str | Path, version: str, seq_ids: list[str], dpi: float) ->
         )
     if not figures:
         return ""
-    return h.section("gallery", "Gallery", "".join(figures))
+    return h.section("gallery", "Gallery", f'<div class="gallery">{"".join(figures)}</div>')
 
 
 def build_report(
@@ -356,9 +356,9 @@ def build_report(
     ]
     sections = [
         _overview(info),
-        _lineage(chain),
         _counts(info, sequences),
         _durations(sequences, music),
+        _lineage(chain),
         _skipped(chain),
         _features(stats),
     ]

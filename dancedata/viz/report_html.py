@@ -31,6 +31,7 @@ code,.mono{font-family:"DejaVu Sans Mono",Menlo,Consolas,monospace;font-size:12p
 .card .v{font-size:22px;font-weight:700;color:#1d3557} .card .k{font-size:12px;color:#56657a}
 .grid{display:flex;flex-wrap:wrap;gap:24px} .grid>div{min-width:220px}
 .bad{color:#b00020;font-weight:600} .ok{color:#2a7a2a} .muted{color:#6b7785}
+.gallery{display:grid;grid-template-columns:repeat(auto-fill,minmax(560px,1fr));gap:12px}
 figure{margin:8px 0} figure img{max-width:100%;border:1px solid #e3e7ee}
 figcaption{font-size:12px;color:#56657a}
 details summary{cursor:pointer;color:#1d3557}
@@ -91,7 +92,7 @@ def bar_chart(
     ``info --json`` field it shows."""
     if not counts:
         return f'<p class="muted">{esc(title)}: none</p>'
-    label_w = min(140, 8 + 7 * max(len(k) for k in counts))
+    label_w = min(150, 14 + 8 * max(len(k) for k in counts))
     top = max(counts.values()) or 1
     span = width - label_w - 40
     height = bar_h * len(counts) + 4
