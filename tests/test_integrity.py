@@ -60,8 +60,22 @@ def test_every_version_records_every_data_file(pristine):
         vdir = pristine / "versions" / version
         record = load_record(vdir)
         assert record is not None and record["algorithm"] == "sha256"
+        assert record["record_version"] == 2
         assert sorted(record["files"]) == data_files(vdir)
         assert "manifest.json" not in record["files"]
+        manifest = vdir / "manifest.json"
+        assert record["manifest"] == {
+            "bytes": manifest.stat().st_size,
+            "sha256": sha256_file(manifest),
+        }
+        parent = json.loads(manifest.read_text())["parent"]
+        if parent is None:
+            assert record["parent"] is None
+        else:
+            assert record["parent"] == {
+                "version": parent,
+                "checksums_sha256": sha256_file(pristine / "versions" / parent / CHECKSUMS_FILE),
+            }
         for rel, entry in record["files"].items():
             assert entry == {
                 "bytes": (vdir / rel).stat().st_size,
@@ -138,7 +152,11 @@ def test_corrupted_or_missing_record(store):
     (v1 / CHECKSUMS_FILE).write_text(json.dumps(record))
     (v2 / CHECKSUMS_FILE).unlink()
     cheap = validate_store(store)
-    assert cheap == ["v1: checksums.json: its own digest does not match (the record is corrupted)"]
+    assert cheap == [
+        "v1: checksums.json: its own digest does not match (the record is corrupted)",
+        # v3 recorded v2's record at its commit: a record that vanished is not a legacy version
+        "v3: checksums.json: parent v2's record is gone (recorded at commit)",
+    ]
     deep = validate_store(store, deep=True)
     assert "v2: checksums.json: missing, so the data cannot be verified" in deep
 

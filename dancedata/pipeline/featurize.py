@@ -54,7 +54,7 @@ from dancedata.pipeline.music_inputs import (
     MusicInputs,
     check_music_inputs,
 )
-from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter
+from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter, create_checked_array
 from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
 from dancedata.store.fs import is_remote
@@ -319,13 +319,12 @@ def _prepare(
         version.remove_array(f"audio/{spec.path}")
     group = version.zarr_group().require_group("motion")
     for spec in motion_specs:
-        array = group.create_array(
+        array = create_checked_array(  # crc32c codec; units write every chunk
+            group,
             spec.path,
             shape=(n_frames, *spec.row_shape),
             chunks=(CHUNK_FRAMES, *spec.row_shape),
             dtype=spec.dtype,
-            fill_value=0,
-            overwrite=False,
         )
         if spec.attrs:
             array.attrs.update(spec.attrs)

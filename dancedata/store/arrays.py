@@ -3,6 +3,11 @@
 Sequences (and audio tracks) are concatenated along axis 0. A :class:`FrameArrayWriter` buffers
 appended rows and writes each chunk exactly once, when it is full, so memory stays bounded by one
 chunk per array however large the dataset, and no chunk is ever rewritten.
+
+Every array is created by :func:`create_checked_array`: its codec chain ends with zarr v3's
+standard ``crc32c`` codec (a CRC-32C of each compressed chunk, checked by every zarr v3 reader),
+and it is written with ``write_empty_chunks`` so that every chunk of its grid exists as a file
+and a missing one can be told from a chunk of zeros (see :mod:`dancedata.store.chunks`).
 """
 
 from __future__ import annotations
@@ -18,6 +23,59 @@ if TYPE_CHECKING:
 # chunk boundaries aligned across arrays, so a work unit "chunk k" touches the same frames
 # everywhere. 8192 frames of (24, 3) float32 is 2.4 MB; of (24, 3, 3) float32, 7 MB.
 CHUNK_FRAMES = 8192
+
+# Write every chunk, even one equal to the fill value: an absent chunk then always means damage.
+WRITE_CONFIG: dict[str, Any] = {"write_empty_chunks": True}
+
+
+def checked_compressors(compressors: Any = "auto") -> list[Any]:
+    """``compressors`` as zarr's ``create_array`` takes them, followed by the crc32c codec.
+
+    "auto" means zstd level 0 without zstd's own checksum: zarr v3's default for numeric data,
+    spelled out so that stores do not change when zarr's default does.
+    """
+    from zarr.codecs import Crc32cCodec, ZstdCodec
+
+    if compressors == "auto":
+        chain: list[Any] = [ZstdCodec(level=0, checksum=False)]
+    elif compressors is None:
+        chain = []
+    elif isinstance(compressors, (list, tuple)):
+        chain = list(compressors)
+    else:
+        chain = [compressors]
+    if not any(isinstance(c, Crc32cCodec) for c in chain):
+        chain.append(Crc32cCodec())
+    return chain
+
+
+def create_checked_array(
+    group: zarr.Group,
+    path: str,
+    *,
+    shape: tuple[int, ...],
+    chunks: tuple[int, ...],
+    dtype: Any,
+    compressors: Any = "auto",
+    fill_value: Any = 0,
+) -> zarr.Array:
+    """A new array under ``group`` with the crc32c codec last and ``write_empty_chunks`` on
+    (the returned object; reopen later ones with :func:`for_writing`)."""
+    return group.create_array(
+        path,
+        shape=shape,
+        chunks=chunks,
+        dtype=dtype,
+        fill_value=fill_value,
+        overwrite=False,
+        compressors=checked_compressors(compressors),
+        config=WRITE_CONFIG,
+    )
+
+
+def for_writing(array: zarr.Array) -> zarr.Array:
+    """``array`` set to write every chunk, fill-valued ones included (see WRITE_CONFIG)."""
+    return array.with_config(WRITE_CONFIG)
 
 
 class FrameArrayWriter:
@@ -35,20 +93,20 @@ class FrameArrayWriter:
         compressors: Any = "auto",
         chunks_per_write: int = 1,
     ) -> None:
-        """``compressors`` as zarr's ``create_array`` takes them ("auto": zarr's default).
+        """``compressors`` as zarr's ``create_array`` takes them ("auto": zstd level 0), the
+        crc32c codec appended (:func:`checked_compressors`).
         ``chunks_per_write`` whole chunks are buffered and written in one call, which zarr
         compresses in parallel threads (memory: that many chunks per array)."""
         self.row_shape = tuple(row_shape)
         self.dtype = np.dtype(dtype)
         self.chunk_frames = chunk_frames
         self.chunks_per_write = max(1, chunks_per_write)
-        self.array = group.create_array(
+        self.array = create_checked_array(
+            group,
             path,
             shape=(0, *self.row_shape),
             chunks=(chunk_frames, *self.row_shape),
             dtype=self.dtype,
-            fill_value=0,
-            overwrite=False,
             compressors=compressors,
         )
         if attrs:

@@ -187,7 +187,11 @@ def _open_array(location: str, name: str) -> Any:
     """One open array per process and name: opening reads its metadata, so do it once."""
     import zarr
 
-    return zarr.open_array(store=zarr_store(location), path=name, mode="r+", zarr_format=3)
+    from dancedata.store.arrays import for_writing  # every chunk written, zeros included
+
+    return for_writing(
+        zarr.open_array(store=zarr_store(location), path=name, mode="r+", zarr_format=3)
+    )
 
 
 def _chunks(values: np.ndarray) -> list[bytes | memoryview]:

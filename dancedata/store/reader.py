@@ -1,4 +1,10 @@
-"""Read one committed version: manifest, parquet tables, zarr arrays and group attrs."""
+"""Read one committed version: manifest, parquet tables, zarr arrays and group attrs.
+
+Arrays are read through :func:`dancedata.store.chunks.checked_store`: a chunk that is missing or
+corrupted raises StoreError naming the version's data.zarr, the array and the chunk, instead of
+reading as fill values or wrong numbers (crc32c for arrays written with it; the sha256 recorded
+in checksums.json for arrays written before).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dancedata.errors import StoreError
+from dancedata.store.chunks import checked_store
 from dancedata.store.fs import is_remote, zarr_store
 from dancedata.store.layout import TABLE_FILES, ZARR_DIR, StoreLayout
 
@@ -32,6 +39,24 @@ class VersionReader:
     def remote(self) -> bool:
         return is_remote(str(self.layout.root))
 
+    def _recorded_chunks(self) -> dict[str, Any]:
+        """checksums.json entries of data.zarr files, keyed by their path inside data.zarr (for
+        arrays written without crc32c); {} when the version has no readable record."""
+        if self.remote:
+            return {}
+        from dancedata.store.integrity import load_record
+
+        record = load_record(self.path) or {}
+        files = record.get("files")
+        if not isinstance(files, dict):
+            return {}
+        prefix = f"{ZARR_DIR}/"
+        return {
+            rel[len(prefix) :]: entry
+            for rel, entry in files.items()
+            if rel.startswith(prefix) and isinstance(entry, dict)
+        }
+
     @cached_property
     def root(self) -> zarr.Group | None:
         import zarr
@@ -43,19 +68,25 @@ class VersionReader:
             return None
         import warnings
 
+        from zarr.storage import LocalStore
+
+        store = checked_store(
+            LocalStore(str(path), read_only=True), str(path), self._recorded_chunks
+        )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=UserWarning)
             try:
-                return zarr.open_group(str(path), mode="r", use_consolidated=True)
+                return zarr.open_group(store=store, mode="r", use_consolidated=True)
             except (ValueError, KeyError, FileNotFoundError):
-                return zarr.open_group(str(path), mode="r")
+                return zarr.open_group(store=store, mode="r")
 
     def _remote_root(self) -> zarr.Group | None:
         import warnings
 
         import zarr
 
-        store = zarr_store(self.layout.zarr_location(self.version), read_only=True)
+        location = self.layout.zarr_location(self.version)
+        store = checked_store(zarr_store(location, read_only=True), str(location))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=UserWarning)
             try:

@@ -1,0 +1,233 @@
+"""Which chunk files a zarr v3 array must have, and a read-only zarr store that refuses to
+return a chunk that is missing, fails its crc32c, or differs from ``checksums.json``.
+
+Every array dancedata writes carries zarr v3's standard ``crc32c`` codec last in its codec
+chain (4 bytes of CRC-32C appended to each compressed chunk) and is written with
+``write_empty_chunks``, so each chunk of its grid exists as a file. A reader can therefore
+refuse:
+
+* a chunk whose bytes no longer match their crc32c (bit rot, a flipped byte), and
+* a chunk that is absent (zarr would silently return the fill value: zeros).
+
+Arrays written before this (no crc32c codec) may legitimately lack all-zero chunks (zarr skips
+writing chunks equal to the fill value); for them a chunk is required when the version's
+``checksums.json`` lists it, and when it does, its sha256 is checked on read instead.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from dancedata.errors import StoreError
+
+if TYPE_CHECKING:
+    from zarr.abc.store import ByteRequest, Store
+    from zarr.core.buffer import Buffer, BufferPrototype
+
+CRC32C_CODEC = "crc32c"
+
+
+@dataclass(frozen=True)
+class ChunkGrid:
+    """The regular chunk grid of one zarr v3 array, from its ``zarr.json``."""
+
+    shape: tuple[int, ...]
+    chunk_shape: tuple[int, ...]
+    separator: str  # chunk key separator: "/" (c/0/0) or "." (c.0.0)
+    default_encoding: bool  # "default" (c/ prefix) or "v2" (bare 0.0) encoding
+    crc32c: bool  # the codec chain ends with crc32c: every chunk was written and is checked
+
+    @classmethod
+    def from_metadata(cls, meta: Any) -> ChunkGrid | None:
+        """The grid of an array's parsed ``zarr.json``; None for a group or anything that is not
+        a regular-grid zarr v3 array (those are not checked here)."""
+        if not isinstance(meta, dict) or meta.get("node_type") != "array":
+            return None
+        try:
+            shape = tuple(int(n) for n in meta["shape"])
+            grid = meta["chunk_grid"]
+            if grid.get("name") != "regular":
+                return None
+            chunk_shape = tuple(int(n) for n in grid["configuration"]["chunk_shape"])
+            encoding = meta.get("chunk_key_encoding") or {"name": "default"}
+            name = encoding.get("name", "default")
+            default_sep = "/" if name == "default" else "."
+            separator = (encoding.get("configuration") or {}).get("separator", default_sep)
+            codecs = meta.get("codecs") or []
+            crc = (
+                bool(codecs)
+                and isinstance(codecs[-1], dict)
+                and (codecs[-1].get("name") == CRC32C_CODEC)
+            )
+        except (KeyError, TypeError, ValueError, AttributeError):
+            return None
+        if len(shape) != len(chunk_shape) or any(c <= 0 for c in chunk_shape):
+            return None
+        return cls(shape, chunk_shape, separator, name == "default", crc)
+
+    @property
+    def grid_shape(self) -> tuple[int, ...]:
+        """Chunks along each axis (0 for an empty axis)."""
+        return tuple(math.ceil(n / c) for n, c in zip(self.shape, self.chunk_shape, strict=True))
+
+    def key(self, coords: tuple[int, ...]) -> str:
+        """The chunk key of ``coords`` relative to the array, e.g. ``c/3/0/0``."""
+        parts = [str(i) for i in coords] or ["0"]
+        body = self.separator.join(parts)
+        return f"c{self.separator}{body}" if self.default_encoding else body
+
+    def chunk_keys(self) -> Iterator[str]:
+        """Every chunk key the array's shape and chunk grid call for."""
+        for coords in itertools.product(*(range(n) for n in self.grid_shape)):
+            yield self.key(coords)
+
+    def coords(self, key: str) -> tuple[int, ...] | None:
+        """The chunk coordinates of an array-relative key, or None when it is not a chunk key."""
+        body = key
+        if self.default_encoding:
+            prefix = f"c{self.separator}"
+            if key == "c" and not self.shape:
+                return ()
+            if not key.startswith(prefix):
+                return None
+            body = key[len(prefix) :]
+        parts = body.split(self.separator)
+        if not all(p.isdigit() for p in parts) or len(parts) != max(1, len(self.shape)):
+            return None
+        coords = tuple(int(p) for p in parts)
+        return coords if self.shape else ()
+
+    def in_grid(self, coords: tuple[int, ...]) -> bool:
+        return all(0 <= i < n for i, n in zip(coords, self.grid_shape, strict=False))
+
+
+def split_chunk_key(key: str) -> tuple[str, str] | None:
+    """``motion/rotmat/c/0/0/0/0`` → (``motion/rotmat``, ``c/0/0/0/0``): the array path and the
+    array-relative chunk key (default encoding); None for metadata and other keys."""
+    parts = key.split("/")
+    index = len(parts)
+    while index > 0 and parts[index - 1].isdigit():
+        index -= 1
+    if index == len(parts) or index == 0 or parts[index - 1] != "c":
+        return None
+    return "/".join(parts[: index - 1]), "/".join(parts[index - 1 :])
+
+
+def describe_chunk(array: str, chunk_key: str) -> str:
+    """``array motion/trans chunk c/0/0`` for messages."""
+    return f"array {array or '/'} chunk {chunk_key}"
+
+
+def crc32c_matches(data: Any) -> bool:
+    """True when the last 4 bytes of ``data`` are the little-endian CRC-32C of the rest (the
+    layout of zarr v3's crc32c codec)."""
+    import google_crc32c
+    import numpy as np
+
+    raw = np.frombuffer(data, dtype=np.uint8)
+    if raw.shape[0] < 4:
+        return False
+    computed = np.uint32(google_crc32c.value(np.ascontiguousarray(raw[:-4]))).tobytes()
+    return computed == raw[-4:].tobytes()
+
+
+# -- the checking store ------------------------------------------------------------------------
+def checked_store(
+    inner: Store,
+    where: str,
+    recorded: Callable[[], dict[str, Any]] | None = None,
+) -> Store:
+    """A read-only view of ``inner`` (the ``data.zarr`` of one version, named ``where`` in
+    messages) whose chunk reads raise StoreError for a missing or corrupted chunk.
+
+    ``recorded`` returns the version's ``checksums.json`` entries of data.zarr files keyed by
+    their path inside data.zarr (``motion/trans/c/0/0``); it is called at most once, the first
+    time a chunk of an array without crc32c is read, and may return {} (no record).
+    """
+    from zarr.storage import WrapperStore
+
+    class CheckedStore(WrapperStore):  # type: ignore[type-arg]
+        """See :func:`checked_store`."""
+
+        def __init__(self, store: Store) -> None:
+            super().__init__(store)
+            self._grids: dict[str, ChunkGrid | None] = {}
+            self._record: dict[str, Any] | None = None
+
+        def _with_store(self, store: Store) -> CheckedStore:
+            return CheckedStore(store)
+
+        async def _grid(self, array: str, prototype: BufferPrototype) -> ChunkGrid | None:
+            if array not in self._grids:
+                meta_key = f"{array}/zarr.json" if array else "zarr.json"
+                raw = await self._store.get(meta_key, prototype)
+                meta = None
+                if raw is not None:
+                    try:
+                        meta = json.loads(raw.to_bytes())
+                    except ValueError:
+                        meta = None
+                self._grids[array] = ChunkGrid.from_metadata(meta)
+            return self._grids[array]
+
+        def _recorded(self) -> dict[str, Any]:
+            if self._record is None:
+                self._record = (recorded() if recorded else None) or {}
+            return self._record
+
+        async def get(
+            self,
+            key: str,
+            prototype: BufferPrototype,
+            byte_range: ByteRequest | None = None,
+        ) -> Buffer | None:
+            value = await self._store.get(key, prototype, byte_range)
+            split = split_chunk_key(key)
+            if split is None or byte_range is not None:
+                return value
+            array, chunk = split
+            grid = await self._grid(array, prototype)
+            if grid is None:
+                return value
+            coords = grid.coords(chunk)
+            if coords is None or not grid.in_grid(coords):
+                return value
+            if grid.crc32c:
+                if value is None:
+                    raise StoreError(
+                        f"{describe_chunk(array, chunk)}: missing (every chunk of this array "
+                        "was written; reading it would return fill values)",
+                        where,
+                    )
+                if not crc32c_matches(value.as_numpy_array()):
+                    raise StoreError(
+                        f"{describe_chunk(array, chunk)}: crc32c checksum mismatch (the chunk "
+                        "is corrupted)",
+                        where,
+                    )
+                return value
+            entry = self._recorded().get(key)
+            if entry is None:
+                return value
+            if value is None:
+                raise StoreError(
+                    f"{describe_chunk(array, chunk)}: missing, but checksums.json recorded it "
+                    "at commit (reading it would return fill values)",
+                    where,
+                )
+            data = value.as_numpy_array()
+            if hashlib.sha256(data).hexdigest() != entry.get("sha256"):
+                raise StoreError(
+                    f"{describe_chunk(array, chunk)}: sha256 differs from checksums.json (the "
+                    "chunk is corrupted)",
+                    where,
+                )
+            return value
+
+    return CheckedStore(inner)
