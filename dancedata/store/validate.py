@@ -1,11 +1,17 @@
 """Check a store against the contract in ``schemas/store.schema.json``.
 
 Returns a list of problems (empty when the store is valid), each naming the version and the
-table, array or file it concerns.
+table, array or file it concerns. Every row of every float array is checked for NaN and Inf,
+chunk by chunk (memory: a few chunks, whatever the array size); an array whose attrs declare
+NaN as its missing-value marker (``missing`` mentions NaN) may hold NaN but never ±Inf.
+A damaged manifest (not an object, fields of the wrong type) is one problem, never a traceback.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -16,7 +22,7 @@ from dancedata.errors import StoreError
 from dancedata.store.contract import store_schema
 from dancedata.store.fs import is_remote
 from dancedata.store.integrity import verify_store
-from dancedata.store.layout import StoreLayout
+from dancedata.store.layout import MANIFEST_FILE, ZARR_DIR, StoreLayout
 from dancedata.store.reader import VersionReader
 
 
@@ -51,13 +57,60 @@ def validate_store(
     integrity = (
         {name: [] for name in names} if is_remote(store) else verify_store(store, names, deep=deep)
     )
+    if version is None and not is_remote(store):
+        problems += _damaged_version_dirs(layout, committed)
+    scanned: dict[Any, tuple[int, int]] = {}  # arrays shared by hard link are scanned once
     for name in names:
         problems += [f"{name}: {p}" for p in integrity[name]]
-        problems += [f"{name}: {p}" for p in validate_version(VersionReader(store, name))]
+        try:
+            reader = VersionReader(store, name)
+        except StoreError as exc:
+            problems.append(f"{name}: {exc}")
+            continue
+        # an unreadable chunk is already named by the integrity check: say it once
+        found = validate_version(reader, report_unreadable=not integrity[name], scanned=scanned)
+        problems += [f"{name}: {p}" for p in found]
     return problems
 
 
-def validate_version(reader: VersionReader) -> list[str]:
+_VERSION_NAME = re.compile(r"^v\d+$")
+
+
+def _damaged_version_dirs(layout: StoreLayout, committed: list[str]) -> list[str]:
+    """One problem per ``versions/vN`` entry that is not a committed version (no manifest.json,
+    or one that is not a usable manifest), naming the file."""
+    folder = layout.versions_dir
+    if not folder.is_dir():
+        return []
+    problems = []
+    for entry in sorted(folder.iterdir(), key=lambda p: p.name):
+        if not _VERSION_NAME.match(entry.name) or entry.name in committed:
+            continue
+        manifest = entry / MANIFEST_FILE
+        if not entry.is_dir():
+            problems.append(f"{entry}: not a version directory")
+        elif not manifest.is_file():
+            problems.append(f"{manifest}: missing (a damaged or half-restored version)")
+        else:
+            try:
+                value = json.loads(manifest.read_text(encoding="utf-8"))
+            except (OSError, ValueError) as exc:
+                problems.append(f"{manifest}: unreadable ({exc})")
+                continue
+            found = manifest_type_problems(value) or ["not a usable manifest"]
+            problems += [f"{manifest}: {p}" for p in found]
+    return problems
+
+
+def validate_version(
+    reader: VersionReader,
+    *,
+    report_unreadable: bool = True,
+    scanned: dict[Any, tuple[int, int]] | None = None,
+) -> list[str]:
+    """Problems of one version against the contract; ``report_unreadable`` False leaves out
+    arrays that cannot be read for the finiteness scan (already reported elsewhere);
+    ``scanned`` carries scan results between versions that share an array's files."""
     schema = store_schema()
     problems = _check_manifest(reader, schema)
     tables: dict[str, list[dict[str, Any]]] = {}
@@ -75,6 +128,10 @@ def validate_version(reader: VersionReader) -> list[str]:
         tables[table] = arrow.to_pylist()
     problems += _guarded("tables", lambda: _check_ranges(reader, tables))
     problems += _guarded("data.zarr", lambda: _check_arrays(reader, tables, schema))
+    problems += _guarded(
+        "data.zarr",
+        lambda: _check_finite(reader, report_unreadable, {} if scanned is None else scanned),
+    )
     return problems
 
 
@@ -87,11 +144,72 @@ def _guarded(what: str, check: Callable[[], list[str]]) -> list[str]:
         return [f"{what}: cannot be read ({type(exc).__name__}: {exc})"]
 
 
+# JSON types of the manifest fields other code relies on (None: null allowed).
+_MANIFEST_TYPES: dict[str, tuple[type, ...]] = {
+    "format_version": (int,),
+    "version": (str,),
+    "parent": (str, type(None)),
+    "created_at": (str,),
+    "dancedata_version": (str,),
+    "command": (str,),
+    "config": (dict,),
+    "fingerprint": (str,),
+    "stages": (dict,),
+    "inputs": (list,),
+    "skipped": (list,),
+    "libraries": (dict,),
+    "counts": (dict,),
+}
+_JSON_NAMES = {
+    int: "an integer",
+    str: "a string",
+    dict: "an object",
+    list: "a list",
+    type(None): "null",
+}
+
+
+def _json_kind(value: Any) -> str:
+    if isinstance(value, bool):
+        return "a boolean"
+    return _JSON_NAMES.get(type(value), f"a {type(value).__name__}")
+
+
+def manifest_type_problems(manifest: Any) -> list[str]:
+    """What is wrong with the shape of a parsed manifest.json: not an object, a field of the
+    wrong JSON type, an ``inputs``/``skipped`` entry that is not an object, a ``stages`` value
+    that is not a fingerprint string. Empty when the types are right."""
+    if not isinstance(manifest, dict):
+        return [f"is {_json_kind(manifest)}, not a JSON object"]
+    problems = []
+    for key, types in _MANIFEST_TYPES.items():
+        value = manifest.get(key)
+        if key in manifest and (not isinstance(value, types) or isinstance(value, bool)):
+            wanted = " or ".join(_JSON_NAMES[t] for t in types)
+            problems.append(f"{key!r} is {_json_kind(value)} ({value!r:.40}), expected {wanted}")
+    for key in ("inputs", "skipped"):
+        entries = manifest.get(key)
+        if isinstance(entries, list):
+            bad = [e for e in entries if not isinstance(e, dict)]
+            if bad:
+                problems.append(
+                    f"{key!r} holds {len(bad)} entries that are not objects (first: {bad[0]!r:.40})"
+                )
+    stages = manifest.get("stages")
+    if isinstance(stages, dict) and not all(isinstance(v, str) for v in stages.values()):
+        problems.append("'stages' must map stage names to fingerprint strings")
+    return problems
+
+
 def _check_manifest(reader: VersionReader, schema: dict[str, Any]) -> list[str]:
     try:
         manifest = reader.manifest
     except StoreError as exc:
         return [str(exc)]
+    where = reader.path / MANIFEST_FILE
+    shape = manifest_type_problems(manifest)
+    if shape:
+        return [f"{where}: {p}" for p in shape]
     spec = schema["manifest"]
     problems = [f"manifest.json: missing {k!r}" for k in spec["required"] if k not in manifest]
     if manifest.get("version") != reader.version:
@@ -224,15 +342,95 @@ def _check_arrays(
         for attr in spec.get("attrs", []):
             if attr not in array.attrs:
                 problems.append(f"{name}: missing attr {attr!r}")
-        if array.dtype.kind == "f" and array.shape[0] and name.startswith("motion/"):
-            sample = np.asarray(array[: min(array.shape[0], 4096)])
-            if not np.all(np.isfinite(sample)) and name not in (
-                "motion/keypoints3d",
-                "motion/keypoints3d_optim",
-                "motion/det_scores",
-                "motion/positions",
-            ):
-                problems.append(f"{name}: holds NaN or Inf")
+    return problems
+
+
+# Chunks read per call in the finiteness scan: zarr decodes them on parallel threads.
+_SCAN_CHUNKS = 4
+
+
+def nan_allowed(attrs: Any) -> bool:
+    """True when an array's attrs declare NaN as its missing-value marker."""
+    missing = attrs.get("missing") if hasattr(attrs, "get") else None
+    return isinstance(missing, str) and "nan" in missing.lower()
+
+
+def nonfinite_rows(array: Any, *, allow_nan: bool, chunks: int = _SCAN_CHUNKS) -> tuple[int, int]:
+    """(rows holding a value that is not allowed, first such row) over every row of a float
+    array, read ``chunks`` chunks along axis 0 at a time (bounded memory). Not allowed: NaN and
+    ±Inf, or only ±Inf when ``allow_nan``. (0, -1) when every row is clean."""
+    n_rows = int(array.shape[0]) if array.ndim else 1
+    step = max(1, int(array.chunks[0]) if array.ndim else 1) * chunks
+    bad_rows, first = 0, -1
+    for start in range(0, n_rows, step):
+        block = np.asarray(array[start : start + step] if array.ndim else array[...])
+        if block.size == 0:
+            continue
+        # min and max propagate NaN and show ±Inf without allocating a boolean array; fmin and
+        # fmax skip NaN. Only a block that fails them is examined row by row.
+        if allow_nan:
+            lo, hi = np.fmin.reduce(block, axis=None), np.fmax.reduce(block, axis=None)
+        else:
+            lo, hi = block.min(), block.max()
+        if np.isfinite(lo) and np.isfinite(hi) or (allow_nan and np.isnan(lo) and np.isnan(hi)):
+            continue
+        flat = block.reshape(block.shape[0], -1) if block.ndim > 1 else block.reshape(-1, 1)
+        bad = np.isinf(flat) if allow_nan else ~np.isfinite(flat)
+        rows = np.flatnonzero(bad.any(axis=1))
+        if rows.size:
+            if first < 0:
+                first = start + int(rows[0])
+            bad_rows += int(rows.size)
+    return bad_rows, first
+
+
+def _array_files_key(reader: VersionReader, name: str, allow_nan: bool) -> Any:
+    """What identifies an array's values on disk: shape, dtype and the inode of each chunk file
+    (versions that carry the array over by hard link share them; its zarr.json is a copy, so
+    it is left out); None on remote stores."""
+    if reader.remote:
+        return None
+    array = reader.array(name)
+    folder = reader.path / ZARR_DIR / name
+    chunks = []
+    for dirpath, _dirnames, filenames in os.walk(folder):
+        for file in filenames:
+            path = os.path.join(dirpath, file)
+            if file == "zarr.json" and dirpath == str(folder):
+                continue
+            try:
+                st = os.lstat(path)
+            except OSError:
+                return None
+            chunks.append((os.path.relpath(path, folder), st.st_dev, st.st_ino, st.st_size))
+    return (tuple(array.shape), str(array.dtype), allow_nan, tuple(sorted(chunks)))
+
+
+def _check_finite(
+    reader: VersionReader, report_unreadable: bool, scanned: dict[Any, tuple[int, int]]
+) -> list[str]:
+    """Every row of every float array is finite (NaN allowed where the attrs say so)."""
+    problems: list[str] = []
+    for name in reader.array_names():
+        array = reader.array(name)
+        if array.dtype.kind != "f":
+            continue
+        allow_nan = nan_allowed(array.attrs)
+        key = _array_files_key(reader, name, allow_nan)
+        try:
+            if key is not None and key in scanned:
+                bad, first = scanned[key]
+            else:
+                bad, first = nonfinite_rows(array, allow_nan=allow_nan)
+        except StoreError as exc:
+            if report_unreadable:
+                problems.append(f"{name}: not checked for NaN/Inf: {exc}")
+            continue
+        if key is not None:
+            scanned[key] = (bad, first)
+        if bad:
+            what = "Inf" if allow_nan else "NaN or Inf"
+            problems.append(f"{name}: {bad} rows hold {what} (first: row {first})")
     return problems
 
 
