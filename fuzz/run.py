@@ -3,11 +3,14 @@
     python fuzz/run.py --minutes 10                 # what `make fuzz` runs
     python fuzz/run.py --seconds 60 --targets bvh_mutated,pickle --seed 3
 
-Targets (fuzz/targets.py) are run round-robin in chunks of ``--chunk`` examples, each chunk with
-its own seed drawn from ``--seed``, until the budget is spent. A failing chunk is shrunk by
-hypothesis to a minimal example, which is written to ``fuzz/failures/<target>-<seed>.txt``
-together with the seed that reproduces it; the run goes on with the other chunks. The exit code
-is 1 if anything failed.
+Targets (fuzz/targets.py) share the budget equally in time: the next chunk always goes to the
+target that has had the least time so far, so a slow target (generated BVH, a few examples a
+second) cannot starve the fast ones. A target's first chunk has at most 20 examples; later
+chunks are sized from its measured rate to take about a third of its share of the budget (at
+most ``--chunk`` examples). Each chunk has its own seed drawn from ``--seed``. A failing chunk
+is shrunk by hypothesis to a minimal example, which is written to
+``fuzz/failures/<target>-<seed>.txt`` together with the seed that reproduces it; the run goes
+on with the other chunks. The exit code is 1 if anything failed.
 """
 
 from __future__ import annotations
@@ -91,40 +94,45 @@ def main(argv: list[str] | None = None) -> int:
     stats = {name: Stats() for name in names}
     start = time.monotonic()
     deadline = start + seconds
+    slice_seconds = max(1.0, seconds / (3 * len(names)))
     print(f"fuzzing {', '.join(names)} for {seconds:.0f} s (seed {args.seed})", flush=True)
-    rounds = 0
+    last_report = start
     while time.monotonic() < deadline:
-        rounds += 1
-        if rounds > 1 and rounds % 5 == 0:
+        if time.monotonic() - last_report >= 30:
+            last_report = time.monotonic()
             done = sum(s.examples for s in stats.values())
-            print(f"  {time.monotonic() - start:6.0f} s: {done} examples", flush=True)
-        for name in names:
-            if time.monotonic() >= deadline:
-                break
-            chunk_seed = rng.randrange(2**32)
-            began = time.monotonic()
-            failure = run_chunk(TARGETS[name], args.chunk, chunk_seed, stats[name])
-            stats[name].seconds += time.monotonic() - began
-            stats[name].chunks += 1
-            if failure is not None:
-                stats[name].failures += 1
-                FAILURES.mkdir(parents=True, exist_ok=True)
-                out = FAILURES / f"{name}-{chunk_seed}.txt"
-                out.write_text(failure, encoding="utf-8")
-                print(f"FAILURE in {name} (seed {chunk_seed}): see {out}", flush=True)
+            print(f"  {last_report - start:6.0f} s: {done} examples", flush=True)
+        name = min(names, key=lambda n: (stats[n].seconds, names.index(n)))  # least time
+        s = stats[name]
+        if s.chunks == 0 or s.seconds <= 0:
+            n_examples = min(args.chunk, 20)
+        else:
+            rate = s.examples / s.seconds
+            n_examples = max(1, min(args.chunk, int(rate * slice_seconds)))
+        chunk_seed = rng.randrange(2**32)
+        began = time.monotonic()
+        failure = run_chunk(TARGETS[name], n_examples, chunk_seed, stats[name])
+        stats[name].seconds += time.monotonic() - began
+        stats[name].chunks += 1
+        if failure is not None:
+            stats[name].failures += 1
+            FAILURES.mkdir(parents=True, exist_ok=True)
+            out = FAILURES / f"{name}-{chunk_seed}.txt"
+            out.write_text(failure, encoding="utf-8")
+            print(f"FAILURE in {name} (seed {chunk_seed}): see {out}", flush=True)
     elapsed = time.monotonic() - start
     print(
-        f"\n{'target':<12} {'examples':>9} {'chunks':>7} {'failures':>9} {'seconds':>8} {'ex/s':>7}"
+        f"\n{'target':<16} {'examples':>9} {'chunks':>7} {'failures':>9} {'seconds':>8} {'ex/s':>7}"
     )
     for name, s in stats.items():
         rate = s.examples / s.seconds if s.seconds else 0.0
         print(
-            f"{name:<12} {s.examples:>9} {s.chunks:>7} {s.failures:>9} {s.seconds:>8.1f} "
+            f"{name:<16} {s.examples:>9} {s.chunks:>7} {s.failures:>9} {s.seconds:>8.1f} "
             f"{rate:>7.0f}"
         )
     total = sum(s.examples for s in stats.values())
     failed = sum(s.failures for s in stats.values())
-    print(f"{'total':<12} {total:>9} {'':>7} {failed:>9} {elapsed:>8.1f}")
+    print(f"{'total':<16} {total:>9} {'':>7} {failed:>9} {elapsed:>8.1f}")
     return 1 if failed else 0
 
 

@@ -70,6 +70,20 @@ def test_corpus_covers_every_kind_of_bad_input(corpus):
     names = {c.name for c in cases if c.kind == "pickle"}
     assert {"truncated", "missing_poses", "poses_69", "poses_strings", "nan_poses"} <= names
     assert {"zero_frames", "evil_os_system", "evil_protocol0_inst", "evil_memory_bomb"} <= names
+    assert {  # issue 11: memory safety of the unpickler, values checked as stored
+        "evil_dtype_object_flags",
+        "evil_ndarray_uninitialised",
+        "evil_ndarray_huge",
+        "evil_huge_shape_few_bytes",
+        "evil_zero_stride_view",
+        "evil_deep_nesting",
+        "evil_long_binput",
+        "scaling_1e-40",
+        "poses_1e300_float64",
+        "scaling_string",
+    } <= names
+    huge = (root / "pickle" / "evil_ndarray_huge.pkl").stat().st_size
+    assert huge < 400  # a few hundred bytes that used to allocate 2.3 GB
     bvh = {c.name for c in cases if c.kind == "bvh"}
     assert {"channel_count_short", "truncated_motion", "glued_numbers", "missing_motion"} <= bvh
     assert {"unbalanced_open_brace", "unknown_channel", "joint_without_brace"} <= bvh
@@ -148,12 +162,25 @@ def test_ingest_stops_at_the_first_bad_motion_with_one_line_and_keeps_the_store(
     _no_payload_ran(root)
 
 
-def test_ingest_skip_records_every_bad_motion_and_ingests_the_rest(corpus, store_v1):
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_ingest_skip_records_every_bad_motion_and_ingests_the_rest(corpus, store_v1, workers):
+    """Every hostile pickle (object-flag dtypes, deep nesting, ...) is one skipped line, also
+    when the reads run in two worker processes: nothing crashes a worker or the run."""
     root, cases = corpus
     raw = root / "aist_motions"
     before = _snapshot(store_v1)
     proc = run_cli(
-        "ingest", "aist", str(raw), "--store", str(store_v1), "-q", "--on-error", "skip", "--json"
+        "ingest",
+        "aist",
+        str(raw),
+        "--store",
+        str(store_v1),
+        "-q",
+        "--on-error",
+        "skip",
+        "--workers",
+        workers,
+        "--json",
     )
     result = json.loads(proc.stdout)
     assert result["version"] == "v2" and result["created"] is True
@@ -178,6 +205,40 @@ def test_ingest_skip_records_every_bad_motion_and_ingests_the_rest(corpus, store
     }
     assert validate_store(store_v1, deep=True) == []
     _no_payload_ran(root)
+
+
+def test_values_are_checked_as_stored_not_as_read(tmp_path):
+    """A finite float64 that the float32 cast turns into Inf is refused naming the file, for
+    motions (corpus: poses_1e300_float64, scaling_1e-40) and for keypoints alike."""
+    from dancedata.ingest.aist_annotations import read_annotations
+
+    n = 12
+    rng = np.random.default_rng(1)
+    kp3d = rng.normal(0, 50, (n, 17, 3))
+    kp3d[4, 2, 1] = np.nan  # NaN is AIST++'s "missing": kept
+    path3d = tmp_path / "kp3d.pkl"
+    path3d.write_bytes(pickle.dumps({"keypoints3d": kp3d, "keypoints3d_optim": kp3d}))
+    annotations = read_annotations(path3d, None, n, 60.0)
+    assert np.isnan(annotations.keypoints3d.keypoints3d[4, 2, 1])
+    kp3d[7, 0, 0] = 1e300
+    path3d.write_bytes(pickle.dumps({"keypoints3d": kp3d, "keypoints3d_optim": kp3d}))
+    with pytest.raises(InputError) as info:
+        read_annotations(path3d, None, n, 60.0)
+    assert str(info.value) == (
+        f"{path3d}: keypoints3d as stored (float32 m) holds Inf (first at frame 7)"
+    )
+    kp3d[7, 0, 0] = 2e5  # 2 km once in metres: finite, implausible
+    path3d.write_bytes(pickle.dumps({"keypoints3d": kp3d, "keypoints3d_optim": kp3d}))
+    with pytest.raises(InputError, match=r"keypoints3d as stored .* outside the plausible range"):
+        read_annotations(path3d, None, n, 60.0)
+    kp2d = rng.uniform(0, 1000, (9, n, 17, 3))
+    kp2d[3, 5, 0, 0] = 1e300
+    path2d = tmp_path / "kp2d.pkl"
+    path2d.write_bytes(pickle.dumps({"keypoints2d": kp2d, "det_scores": np.ones((9, n))}))
+    with pytest.raises(
+        InputError, match=r"keypoints2d as stored \(float32\) holds Inf \(first at frame 5\)"
+    ):
+        read_annotations(None, path2d, n, 60.0)
 
 
 def test_split_files_naming_missing_sequences_are_reported_and_skipped(corpus, tmp_path):
