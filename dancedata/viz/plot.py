@@ -95,7 +95,7 @@ def _panel_onset(ax: Axes, d: SequencePlotData) -> None:
         beats.set_label("tracked beats")
     ax.set_ylabel("onset\nstrength")
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(loc="upper right", fontsize=7, ncol=3, frameon=False)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.02), fontsize=7, frameon=False)
 
 
 def _panel_stems(ax: Axes, d: SequencePlotData) -> None:
@@ -136,10 +136,12 @@ def _panel_keyframes(ax: Axes, d: SequencePlotData) -> None:
 
 def _panel_joints(ax: Axes, d: SequencePlotData) -> None:
     t = d.seconds(np.arange(d.n_frames))
+    # Column k of a scipy Euler triple is the angle about the k-th axis of the order string.
+    order = d.euler_order if len(d.euler_order) == 3 else ""
     for j, (joint, angles) in enumerate(d.joint_angles_deg.items()):
         colour = JOINT_COLOURS[j % len(JOINT_COLOURS)]
         for axis in range(angles.shape[1]):
-            label = f"{joint} {'XYZ'[axis]}" if d.euler_order else f"{joint} [{axis}]"
+            label = f"{joint} {order[axis]}" if order else f"{joint} [{axis}]"
             ax.plot(
                 t[: angles.shape[0]],
                 angles[:, axis],
@@ -148,8 +150,8 @@ def _panel_joints(ax: Axes, d: SequencePlotData) -> None:
                 linestyle=AXIS_STYLES[axis % 3],
                 label=label,
             )
-    ax.set_ylabel(f"joint Euler\nangles (deg, {d.euler_order or '?'})")
-    ax.legend(loc="upper right", fontsize=6, ncol=len(d.joint_angles_deg), frameon=False)
+    ax.set_ylabel(f"joint Euler angles\n(deg, {d.euler_order or '?'})")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.02), fontsize=6, frameon=False)
 
 
 def figure_from_data(d: SequencePlotData, *, width: float = 12.0, dpi: float = 100) -> Figure:
