@@ -85,7 +85,7 @@ class PickleLimits:
     max_int_bytes: int = 64  # LONG1 / LONG4 payload; text INT / LONG: 3x as many digits
     max_ndim: int = 32  # numpy allows 64
     max_dim: int = 1 << 40  # one array dimension
-    max_opcodes: int = 1 << 24  # bounds the time: about 10 s of opcodes
+    max_opcodes: int = 1 << 21  # bounds the time: 2 M opcodes run in 2-10 s
 
 
 DEFAULT_LIMITS = PickleLimits()
@@ -704,7 +704,9 @@ class RestrictedUnpickler:
             children = self._children(value)
             if children is None:
                 continue
-            open_.add(key)
+            open_.add(key)  # open_ is the path from the root to here
+            if len(open_) > limit:
+                raise _refuse(f"containers nested more than {limit} deep")
             todo.append((value, True))
             todo.extend((c, False) for c in children if id(c) not in depth)
 
