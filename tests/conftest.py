@@ -42,3 +42,13 @@ def real_data() -> Path:
             pytest.fail(f"CI=true but the real data folder is missing: {root}")
         pytest.skip(f"real data folder absent: {root}")
     return root
+
+
+@pytest.fixture(scope="session")
+def small_featurized_store(tmp_path_factory) -> Path:
+    """A real 2-sequence synthetic AIST++ store: v1 ingest, v2 featurize (offline stems, NMFD),
+    v3 segment (tests/viz_helpers.py). Shared by the plot and report tests: never write to it;
+    copy it first."""
+    from tests.viz_helpers import build_small_store
+
+    return build_small_store(tmp_path_factory.mktemp("small-store"))

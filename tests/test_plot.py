@@ -17,7 +17,6 @@ import pytest
 import zarr
 
 from tests.helpers import importorskip_unless_ci, run_cli
-from tests.viz_helpers import build_small_store
 
 importorskip_unless_ci("matplotlib")
 
@@ -29,8 +28,8 @@ from dancedata.viz.plot_data import gather, peak_envelope  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def store(tmp_path_factory):
-    return build_small_store(tmp_path_factory.mktemp("plot"))
+def store(small_featurized_store):
+    return small_featurized_store
 
 
 def _raw(store, version="v3"):
@@ -212,14 +211,20 @@ def test_joint_angles_are_the_stored_euler_in_degrees(store):
 
 
 def test_cli_writes_png_svg_pdf_and_rejects_bad_input(store, tmp_path):
+    from dancedata.viz.plot import save_figure
+
     seq_id = next(iter(_raw(store)[1]))
+    proc = run_cli("plot", str(store), seq_id, str(tmp_path / "fig.png"))
+    assert "wrote" in proc.stdout
+    fig = sequence_figure(store, seq_id)
+    for suffix in ("svg", "pdf"):
+        save_figure(fig, tmp_path / f"fig.{suffix}")
     magic = {"png": b"\x89PNG\r\n", "svg": b"<?xml", "pdf": b"%PDF"}
     for suffix, head in magic.items():
         out = tmp_path / f"fig.{suffix}"
-        proc = run_cli("plot", str(store), seq_id, str(out))
-        assert "wrote" in proc.stdout
         assert out.read_bytes().startswith(head) and out.stat().st_size > 10_000
     assert seq_id in (tmp_path / "fig.svg").read_text()  # a real figure: it holds the title
+    assert not list(tmp_path.glob(".*tmp*"))  # no temporary file left behind
     bad = run_cli("plot", str(store), seq_id, str(tmp_path / "fig.gif"), check=False)
     assert bad.returncode == 1 and "unknown figure format" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "fig.gif").exists()

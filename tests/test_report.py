@@ -21,7 +21,6 @@ import pytest
 import zarr
 
 from tests.helpers import importorskip_unless_ci, run_cli
-from tests.viz_helpers import build_small_store
 
 importorskip_unless_ci("matplotlib")
 
@@ -32,8 +31,8 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollba
 
 
 @pytest.fixture(scope="module")
-def store(tmp_path_factory):
-    return build_small_store(tmp_path_factory.mktemp("report"))
+def store(small_featurized_store):
+    return small_featurized_store
 
 
 @pytest.fixture(scope="module")
