@@ -28,11 +28,13 @@ itself and builds numpy objects only through three narrow functions that check e
   them. ``numpy.ndarray`` itself is never called, so no uninitialised memory, no strides;
 * scalars (``scalar(dtype, bytes)``): the bytes must be exactly one item.
 
-Everything the file can make grow is bounded (:class:`PickleLimits`): the file size, the memo
-index, the stack, the number of container items, the nesting depth (containers inside
-containers, checked as tuples are built and again over the whole result, which must also be
-free of cycles), the size of integers, and the bytes of all arrays together, which may not
-exceed twice the file's own size (a memoised buffer cannot be reused to build gigabytes). Every
+Everything the file can make grow is bounded (:class:`PickleLimits`): the file size, the number
+of opcodes, the memo index, the stack, the number of container items, the nesting depth
+(containers inside containers, checked as tuples are built and again over the whole result,
+which must also be free of cycles), the size of integers, and the bytes of all arrays together,
+which may not exceed twice the file's own size (a memoised buffer cannot be reused to build
+gigabytes). Dict keys and set items are limited to kinds whose hashes cannot be made to collide
+(strings, bytes, small ints, tuples of strings), so no load can be made quadratic. Every
 refusal is raised as :class:`UnsafePickleError` (``unsafe pickle: refused ...``) and every
 malformed file as :class:`~dancedata.errors.InputError` (``unreadable pickle: ...``), one line
 naming the file. Real AIST++ pickles load bit-identically to ``pickle.load``.
@@ -50,6 +52,7 @@ import math
 import pickle
 import reprlib
 import struct
+import sys
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -182,6 +185,27 @@ def _is_int(value: object, expected: int) -> bool:
 
 def _is_flag(value: object) -> bool:
     return _is_int(value, 0) or _is_int(value, 1)
+
+
+_HASH_MODULUS = sys.hash_info.modulus  # ints below it hash to themselves: no collisions
+_KEY_ATOMS = (str, bytes, bool, type(None))  # str and bytes hashes are randomised per process
+
+
+def _check_keys(keys: list[Any]) -> None:
+    """Dict keys and set items may be strings, bytes, None, bools, ints of magnitude below
+    2**61 - 1, or tuples of strings, bytes, None and bools. Other hashes (large ints, floats,
+    tuples of numbers) are deterministic, so a file could make a million keys collide and the
+    load take hours."""
+    for key in keys:
+        kind = type(key)
+        if kind in _KEY_ATOMS or (kind is int and -_HASH_MODULUS < key < _HASH_MODULUS):
+            continue
+        if kind is tuple and all(type(item) in _KEY_ATOMS for item in key):
+            continue
+        raise _refuse(
+            f"a {kind.__name__} as a dict key or set item: only strings, bytes, small ints "
+            "and tuples of strings (other hashes can be made to collide and stall the load)"
+        )
 
 
 def _refuse(message: str) -> _Refused:
@@ -454,6 +478,7 @@ class RestrictedUnpickler:
             raise _Malformed("SETITEMS with an odd number of values")
         items = self._items_of(values)
         target = self._mutable_target(dict, "SETITEMS")
+        _check_keys(items[0::2])
         for k in range(0, len(items), 2):
             target[items[k]] = items[k + 1]
         self._grow(target, items)
@@ -818,6 +843,7 @@ def _op_dict(u: RestrictedUnpickler) -> None:
     if len(values) % 2:
         raise _Malformed("DICT with an odd number of values")
     items = u._items_of(values)
+    _check_keys(items[0::2])
     made = {items[k]: items[k + 1] for k in range(0, len(items), 2)}
     u._push(u._new_container(made, items))
 
@@ -846,12 +872,14 @@ def _op_setitem(u: RestrictedUnpickler) -> None:
 def _op_additems(u: RestrictedUnpickler) -> None:
     items = u._items_of(u._pop_mark())
     target = u._mutable_target(set, "ADDITEMS")
+    _check_keys(items)
     target.update(items)
     u._grow(target, items)
 
 
 def _op_frozenset(u: RestrictedUnpickler) -> None:
     items = u._items_of(u._pop_mark())
+    _check_keys(items)
     u._push(u._new_container(frozenset(items), items))
 
 

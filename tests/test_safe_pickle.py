@@ -369,3 +369,16 @@ def test_each_hostile_class_exits_1_with_one_line_in_a_subprocess(tmp_path, name
     grew_kb = int(proc.stdout.split()[-1]) - int(baseline.stdout.split()[-1])
     assert grew_kb < 100_000, f"the child grew by {grew_kb} kB"
     assert time.monotonic() - began < 30
+
+
+def test_dict_keys_whose_hashes_can_be_made_to_collide_are_refused():
+    """20,000 ints that are multiples of 2**61 - 1 share one hash: a plain dict of them takes
+    seconds, a million of them hours. Keys are strings, bytes, small ints or tuples of strings."""
+    modulus = 2**61 - 1
+    key = b"\x8a\x10" + (3 * modulus).to_bytes(16, "little", signed=True)
+    for container in (b"}" + key + b"Ns", b"\x8f(" + key + b"\x90", b"(" + key + b"\x91"):
+        assert "as a dict key or set item" in _refusal(b"\x80\x04" + container + b".")
+    for key in (b"G?\xf0\x00\x00\x00\x00\x00\x00", b"K\x01K\x02\x86"):  # a float, a tuple of ints
+        assert "as a dict key" in _refusal(b"\x80\x04}" + key + b"Ns.")
+    ok = {"s": 1, b"b": 2, 7: 3, -(2**40): 4, None: 5, True: 6, ("a", b"b", None): 7}
+    assert loads_restricted(pickle.dumps(ok, protocol=4)) == ok
