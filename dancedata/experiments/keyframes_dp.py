@@ -100,13 +100,18 @@ def _numba_kernel(perpendicular: bool) -> Any:  # pragma: no cover - runs whenev
         @numba.njit(cache=False)
         def kernel(gram, table):
             m, length, _ = gram.shape
+            diag = np.empty(length)
             for mm in range(m):
                 g = gram[mm]
+                for i in range(length):
+                    diag[i] = g[i, i]
                 for a in range(length - 1):
                     table[mm, a, a + 1] = 0.0
-                    g_aa = g[a, a]
+                    g_aa = diag[a]
+                    row_a = g[a]  # G is symmetric: G[i, a] = G[a, i], contiguous in i
                     for b in range(a + 2, length):
-                        g_ab, g_bb = g[a, b], g[b, b]
+                        row_b = g[b]
+                        g_ab, g_bb = row_a[b], diag[b]
                         gap = b - a
                         inv = 1.0 / gap
                         vv_x = g_bb - 2.0 * g_ab + g_aa
@@ -115,15 +120,15 @@ def _numba_kernel(perpendicular: bool) -> Any:  # pragma: no cover - runs whenev
                         for i in range(a + 1, b):
                             s = (i - a) * inv
                             d2 = (
-                                g[i, i]
-                                - 2.0 * (1.0 - s) * g[i, a]
-                                - 2.0 * s * g[i, b]
+                                diag[i]
+                                - 2.0 * (1.0 - s) * row_a[i]
+                                - 2.0 * s * row_b[i]
                                 + (1.0 - s) * (1.0 - s) * g_aa
                                 + 2.0 * s * (1.0 - s) * g_ab
                                 + s * s * g_bb
                             )
                             if perp:
-                                r_dot_v = g[i, b] - g[i, a] - g_ab + g_aa - s * vv_x
+                                r_dot_v = row_b[i] - row_a[i] - g_ab + g_aa - s * vv_x
                                 d2 -= r_dot_v * r_dot_v / vv
                             worst = max(worst, d2)
                         table[mm, a, b] = np.sqrt(worst)
