@@ -99,6 +99,7 @@ def _check_against_info(cells: dict[str, str], info: dict) -> None:
         for scheme, splits in info.get("splits_in_store", {}).items()
         for split in splits
     }
+    required |= {f"tables.{name}" for name in info["tables"]}
     if "measures" in info:
         required.add("measures")
     assert required <= set(cells), sorted(required - set(cells))

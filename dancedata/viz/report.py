@@ -71,6 +71,16 @@ def _overview(info: dict[str, Any]) -> str:
             )
             + "</p>"
         )
+    tables = info.get("tables") or {}
+    if tables:
+        note += (
+            "<p>Tables (rows): "
+            + ", ".join(
+                f'<code>{h.esc(name)}</code> <span data-info="tables.{h.esc(name)}">{rows}</span>'
+                for name, rows in tables.items()
+            )
+            + f"; {len(info.get('arrays') or {})} arrays (see feature distributions).</p>"
+        )
     if info.get("audio_truncated_sequences"):
         note += (
             '<p class="muted">Music longer than the motion (cut off) in '
