@@ -17,6 +17,7 @@ DEMO_STORE := data/stores/aist-demo
 DEMO_SEQUENCES ?= 24
 DEMO_REPORT := data/stores/aist-demo-report.html
 DEMO_PLOT := data/stores/aist-demo-plot.png
+DEMO_RENDER := data/stores/aist-demo-render.mp4
 # The sequence drawn for docs/img/plot.png (default: the store's first, looked up at run time).
 DEMO_PLOT_SEQ ?= $$($(PY) -c "import dancedata; print(dancedata.open_store('$(DEMO_STORE)').seq_ids()[0])")
 
@@ -57,6 +58,8 @@ pipeline: $(STAMP) $(VIZ_STAMP) browser
 	$(BIN)/dancedata plot $(DEMO_STORE) $(DEMO_PLOT_SEQ) $(DEMO_PLOT)
 	mkdir -p docs/img
 	cp $(DEMO_PLOT) docs/img/plot.png
+	$(BIN)/dancedata render $(DEMO_STORE) $(DEMO_PLOT_SEQ) $(DEMO_RENDER)
+	$(BIN)/dancedata render $(DEMO_STORE) $(DEMO_PLOT_SEQ) docs/img/render.png --start 240
 	$(CHROMIUM) --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1280,900 \
 		--screenshot=docs/img/report.png file://$(abspath $(DEMO_REPORT)) 2>/dev/null
 
@@ -64,7 +67,7 @@ pipeline: $(STAMP) $(VIZ_STAMP) browser
 test: $(STEMS_STAMP) $(VIZ_STAMP) browser
 	$(PY) -m pytest -q
 
-bench: $(STAMP)
+bench: $(STAMP) $(VIZ_STAMP)
 	$(PY) bench/run.py $(BENCH)
 
 # Hypothesis fuzzing of the readers (fuzz/run.py): FUZZ_MINUTES of examples, then statistics.

@@ -14,7 +14,9 @@ from dancedata.cli.main import app
 def render(
     store: Annotated[Path, typer.Argument(help="Store directory.")],
     seq_id: Annotated[str, typer.Argument(help="Sequence id (sequences.seq_id).")],
-    out: Annotated[Path, typer.Argument(help="MP4 file to write (H.264 + AAC).")],
+    out: Annotated[
+        Path, typer.Argument(help="MP4 file to write (H.264 + AAC), or a .png for one still.")
+    ],
     width: Annotated[int, typer.Option(help="Frame width in pixels (even).")] = 640,
     height: Annotated[int, typer.Option(help="Frame height in pixels (even).")] = 480,
     view: Annotated[
@@ -64,11 +66,14 @@ def render(
     as_json: Json = False,
 ) -> None:
     """Render SEQ_ID's skeleton to OUT.mp4 at the sequence's fps, with its music, the current
-    measure and beat. Needs the 'viz' extra: pip install 'dancedata[viz]'."""
+    measure and beat. OUT.png writes the one frame at --start instead (a still). Needs the 'viz'
+    extra: pip install 'dancedata[viz]'."""
     setup(quiet)
-    from dancedata.viz.render import RenderOptions, render_sequence, require_av
+    from dancedata.viz.render import RenderOptions, render_sequence, render_still, require_av
 
-    require_av()
+    still = out.suffix.lower() == ".png"
+    if not still:
+        require_av()
     options = RenderOptions(
         width=width,
         height=height,
@@ -83,4 +88,5 @@ def render(
         audio=audio,
         version=version,
     )
-    report(render_sequence(store, seq_id, out, options), "render", as_json)
+    result = (render_still if still else render_sequence)(store, seq_id, out, options)
+    report(result, "render", as_json)

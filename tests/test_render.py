@@ -353,3 +353,20 @@ def test_without_the_viz_extra_the_command_names_it(aist_store: Path, tmp_path: 
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert proc.returncode == 1 and len(lines) == 1
     assert "pip install 'dancedata[viz]'" in lines[0] and not out.exists()
+
+
+def test_png_still_needs_no_pyav_and_is_the_frame(aist_store: Path, tmp_path: Path) -> None:
+    import cv2
+
+    hidden = tmp_path / "no_av"
+    (hidden / "av").mkdir(parents=True)
+    (hidden / "av" / "__init__.py").write_text("raise ImportError('PyAV hidden by the test')\n")
+    seq = first_seq(aist_store)
+    out = tmp_path / "still.png"
+    run_cli("render", str(aist_store), seq, str(out), "--start", "241", "--view", "top", "-q",
+            env={"PYTHONPATH": str(hidden)})  # fmt: skip
+    image = cv2.imread(str(out))
+    renderer = SkeletonRenderer(aist_store, seq, RenderOptions(view="top"))
+    np.testing.assert_array_equal(image, renderer.frame(241))
+    check_pixels(image[:, :, ::-1], renderer.pixels[0][241], renderer.panels[0].track.parents,
+                 renderer.layout.drawing_area(0))

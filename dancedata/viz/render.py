@@ -55,6 +55,7 @@ __all__ = [
     "music_samples",
     "music_timing",
     "render_sequence",
+    "render_still",
     "require_av",
     "skeleton_frames",
 ]
@@ -143,6 +144,11 @@ class RenderResult:
         return {**asdict(self), "duration_s": self.duration_s, "speed": self.speed}
 
     def message(self, command: str) -> str:
+        if self.codec == "png":
+            return (
+                f"{command}: wrote {self.out} (frame {self.start} of {self.seq_id}, "
+                f"{self.width}x{self.height}, {len(self.panels)} panel(s))"
+            )
         sound = "with music" if self.audio else f"no audio ({self.audio_note})"
         return (
             f"{command}: wrote {self.out} ({self.frames} frames at {self.fps:g} fps, "
@@ -360,6 +366,62 @@ def skeleton_frames(
         yield image[:, :, ::-1].copy()
 
 
+def render_still(
+    store: str | Path | DanceStore,
+    seq_id: str,
+    out: str | Path,
+    options: RenderOptions | None = None,
+) -> RenderResult:
+    """Write the frame at ``options.start`` (default: the first) as a PNG image, drawn as
+    :func:`render_sequence` draws it, with the whole sequence on the timeline; no audio, no
+    PyAV needed."""
+    import dataclasses
+
+    import cv2
+
+    began = time.perf_counter()
+    options = options or RenderOptions()
+    renderer = SkeletonRenderer(store, seq_id, dataclasses.replace(options, start=0, stop=None))
+    frame = int(options.start or 0)
+    if not 0 <= frame < renderer.n_total:
+        raise InputError(
+            f"frame {frame} is not inside the sequence's {renderer.n_total} frames (--start)"
+        )
+    out = Path(out)
+    if not out.parent.is_dir():
+        raise InputError("the output folder does not exist", out.parent)
+    if not cv2.imwrite(str(out), renderer.frame(frame)):
+        raise InputError("cannot write the PNG image", out)
+    return RenderResult(
+        out=str(out),
+        seq_id=seq_id,
+        frames=1,
+        fps=renderer.fps,
+        start=frame,
+        stop=frame + 1,
+        width=options.width,
+        height=options.height,
+        view=options.view,
+        codec="png",
+        audio=False,
+        audio_note="a still image",
+        panels=[_panel_summary(p) for p in renderer.panels],
+        render_s=time.perf_counter() - began,
+    )
+
+
+def _panel_summary(panel: Panel) -> dict[str, Any]:
+    track = panel.track
+    return {
+        "label": track.label,
+        "source": track.source,
+        "kind": track.kind,
+        "up_axis": track.up_axis,
+        "fps": track.fps,
+        "frames": track.n_frames,
+    }
+
+
 def render_sequence(
     store: str | Path | DanceStore,
     seq_id: str,
@@ -400,16 +462,6 @@ def render_sequence(
         codec=codec,
         audio=audio is not None,
         audio_note=note,
-        panels=[
-            {
-                "label": p.track.label,
-                "source": p.track.source,
-                "kind": p.track.kind,
-                "up_axis": p.track.up_axis,
-                "fps": p.track.fps,
-                "frames": p.track.n_frames,
-            }
-            for p in renderer.panels
-        ],
+        panels=[_panel_summary(p) for p in renderer.panels],
         render_s=time.perf_counter() - began,
     )
