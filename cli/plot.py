@@ -26,6 +26,12 @@ def plot(
     ] = None,
     width: Annotated[float, typer.Option(min=4.0, help="Figure width in inches.")] = 12.0,
     dpi: Annotated[float, typer.Option(min=20.0, help="Dots per inch (PNG).")] = 100.0,
+    start: Annotated[
+        int | None, typer.Option(help="First motion frame shown (default: 0).")
+    ] = None,
+    stop: Annotated[
+        int | None, typer.Option(help="Motion frame to stop before (default: the end).")
+    ] = None,
     version: VersionOpt = None,
 ) -> None:
     """Draw SEQ_ID of STORE to OUT: waveform, onset envelope and peaks, tracked beats, measure
@@ -43,5 +49,7 @@ def plot(
 
     check_figure_path(out)
     chosen = tuple(split_csv(joints) or DEFAULT_JOINTS)
-    fig = sequence_figure(store, seq_id, version=version, joints=chosen, width=width, dpi=dpi)
+    fig = sequence_figure(
+        store, seq_id, version=version, joints=chosen, width=width, dpi=dpi, start=start, stop=stop
+    )
     typer.echo(f"plot: wrote {save_figure(fig, out)}")

@@ -267,3 +267,15 @@ def test_no_interactive_backend_and_no_pyplot(store):
         env={**os.environ, "MPLBACKEND": "TkAgg"},
     )
     assert proc.stdout.split() == ["False", "False", "FigureCanvasBase"]
+
+
+def test_frame_range_zooms_the_shared_axis(store):
+    from dancedata.errors import InputError
+
+    seq_id, seq = next(iter(_raw(store)[1].items()))
+    fig = sequence_figure(store, seq_id, start=100, stop=250)
+    for ax in fig.axes:
+        assert ax.get_xlim() == pytest.approx((100 / seq["fps"], 250 / seq["fps"]))
+    for start, stop in ((250, 100), (0, seq["n_frames"] + 1), (-1, 10)):
+        with pytest.raises(InputError, match="frame range"):
+            sequence_figure(store, seq_id, start=start, stop=stop)

@@ -154,8 +154,30 @@ def _panel_joints(ax: Axes, d: SequencePlotData) -> None:
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.02), fontsize=6, frameon=False)
 
 
-def figure_from_data(d: SequencePlotData, *, width: float = 12.0, dpi: float = 100) -> Figure:
-    """Draw gathered :class:`SequencePlotData` (see the module docstring for what is where)."""
+def frame_window(n_frames: int, start: int | None, stop: int | None) -> tuple[int, int]:
+    """[start, stop) motion frames to show, defaulting to the whole sequence; an empty or
+    out-of-range window is an InputError."""
+    from dancedata.errors import InputError
+
+    first = 0 if start is None else int(start)
+    last = n_frames if stop is None else int(stop)
+    if not 0 <= first < last <= n_frames:
+        raise InputError(
+            f"frame range [{first}, {last}) is not inside the sequence's {n_frames} frames"
+        )
+    return first, last
+
+
+def figure_from_data(
+    d: SequencePlotData,
+    *,
+    width: float = 12.0,
+    dpi: float = 100,
+    start: int | None = None,
+    stop: int | None = None,
+) -> Figure:
+    """Draw gathered :class:`SequencePlotData` (see the module docstring for what is where);
+    ``start``/``stop`` (motion frames) zoom the shared x axis to [start, stop)."""
     require("matplotlib", "plotting")
     from matplotlib.figure import Figure
 
@@ -173,10 +195,11 @@ def figure_from_data(d: SequencePlotData, *, width: float = 12.0, dpi: float = 1
     axes = fig.subplots(len(panels), 1, sharex=True, gridspec_kw={"height_ratios": heights})
     axes = np.atleast_1d(axes)
     duration = d.n_frames / d.fps
+    first, last = frame_window(d.n_frames, start, stop)
     for ax, (draw, _) in zip(axes, panels, strict=True):
         draw(ax, d)
         _vlines(ax, d.measure_bounds, d, "measures", **MEASURE_STYLE)
-        ax.set_xlim(0.0, duration)
+        ax.set_xlim(first / d.fps, last / d.fps)
         ax.tick_params(labelsize=7)
         ax.yaxis.label.set_size(8)
     fps = d.fps
@@ -208,13 +231,20 @@ def sequence_figure(
     joints: tuple[str, ...] = DEFAULT_JOINTS,
     width: float = 12.0,
     dpi: float = 100,
+    start: int | None = None,
+    stop: int | None = None,
 ) -> Figure:
     """The sequence's figure (matplotlib Figure, Agg canvas). ``store`` is a path or an open
     :class:`~dancedata.loader.DanceStore`; ``joints`` names the joints of the angle panel
-    (skeleton names; the most-varying joints when none match)."""
+    (skeleton names; the most-varying joints when none match); ``start``/``stop`` show only
+    motion frames [start, stop)."""
     require("matplotlib", "plotting")
     return figure_from_data(
-        gather(store, seq_id, version=version, joints=joints), width=width, dpi=dpi
+        gather(store, seq_id, version=version, joints=joints),
+        width=width,
+        dpi=dpi,
+        start=start,
+        stop=stop,
     )
 
 
