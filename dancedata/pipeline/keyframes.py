@@ -37,7 +37,7 @@ from dancedata.ingest.result import CommandResult
 from dancedata.store.checksums import fingerprint
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
-from dancedata.store.writer import VersionWriter, already_done
+from dancedata.store.writer import VersionWriter, already_done, hold_store_lock
 
 DATA_STAGES = ("ingest", "featurize", "segment")
 # Measures per DP batch: bounds memory to about batch × L² × 8 bytes × 3 (L = 180: 100 MB).
@@ -366,7 +366,15 @@ def _table(selections: list[tuple[str, int, str, list[Selection]]], measures: Me
 
 
 def keyframes(store: str | Path, options: KeyframesOptions) -> CommandResult:
-    """Select keyframes for every measure and write the keyframes table as a new version."""
+    """Select keyframes for every measure and write the keyframes table as a new version
+    derived from ``options.version`` (default: the latest, as it is once the lock is held)."""
+    # Parent, fingerprint and the "already done" check are read under the store lock, as in
+    # segment: a run that waited behind another writer derives from that writer's result.
+    with hold_store_lock(store, wait=options.wait_for_lock) as lock:
+        return _keyframes_locked(store, options, lock)
+
+
+def _keyframes_locked(store: str | Path, options: KeyframesOptions, lock: Any) -> CommandResult:
     from dancedata.loader import DanceStore
 
     layout = StoreLayout(store)
@@ -453,6 +461,7 @@ def keyframes(store: str | Path, options: KeyframesOptions) -> CommandResult:
         wait_for_lock=options.wait_for_lock,
         stage="keyframes",
         parent_stages=reader.manifest.get("stages"),
+        lock=lock,
     ) as version:
         for (seq_id, _strategy), reason in sorted(skipped.items()):
             version.skip(seq_id, reason)
