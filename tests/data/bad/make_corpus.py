@@ -655,9 +655,44 @@ def _wav_bytes(seconds: float, sr: int = 24000, silent: bool = False) -> bytes:
     return buf.getvalue()
 
 
+def _float_wav_bytes(bad_value: float, sr: int = 24000) -> bytes:
+    """1 s of a quiet tone as 32-bit float WAV with ``bad_value`` at sample 1000 (issue 11.8)."""
+    import io
+
+    import soundfile as sf
+
+    y = (0.1 * np.sin(np.arange(sr) * 2 * np.pi * 440 / sr)).astype(np.float32)
+    y[1000] = bad_value
+    buf = io.BytesIO()
+    sf.write(buf, y, sr, format="WAV", subtype="FLOAT")
+    return buf.getvalue()
+
+
 def _audio_cases() -> list[tuple[str, bytes, str, str]]:
     wav = _wav_bytes(1.0)
     return [
+        # issue 11.8: bad samples are named, not reported as "not readable or truncated"
+        (
+            "nan_sample.wav",
+            _float_wav_bytes(np.nan),
+            r"non-finite audio sample \(nan\) at sample "
+            r"1000",
+            "NaN in a float WAV",
+        ),
+        ("inf_sample.wav", _float_wav_bytes(np.inf), r"non-finite audio sample \(inf\)", "+Inf"),
+        (
+            "huge_sample.wav",
+            _float_wav_bytes(1e30),
+            r"out-of-range audio sample \(1e\+30\)",
+            "1e30 in a float WAV (its power spectrum overflows float32)",
+        ),
+        (
+            "text_named_wav.wav",
+            b"RIFX" + b"not audio at all " * 40,
+            r"cannot decode audio: .*"
+            r"whatever the extension",
+            "content no decoder reads, named .wav",
+        ),
         ("header_only.wav", wav[:44], r"cannot decode audio|holds no samples", "RIFF header only"),
         ("torn_header.wav", wav[:20], r"cannot decode audio", "cut inside the header"),
         ("text_as.wav", b"this is not audio\n" * 20, r"cannot decode audio", "wrong content"),
