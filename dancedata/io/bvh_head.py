@@ -62,6 +62,7 @@ MAX_HEADER_BYTES = 64 * 2**20
 FRAME_TIME_RANGE_S = (1e-4, 10.0)
 
 _FIRST_READ_BYTES = 2**20
+_LINE_CHUNK_BYTES = 2**16
 _T = TypeVar("_T")
 _WORD = re.compile(rb"\S{1,%d}" % (MAX_WORD_BYTES + 1))
 _NON_SPACE = re.compile(rb"\S")
@@ -129,6 +130,7 @@ class Words:
         self.line_start = start  # offset where that line begins
         self.items: list[tuple[str, int]] = []
         self.pos = 0
+        self.whole_line = False  # items hold all the words up to the end of their line
         self.done = False
         self.motion_end: int | None = None
         self.last_line = 1
@@ -141,42 +143,58 @@ class Words:
         self.scan = offset
 
     def _fill(self) -> bool:
-        head = self.head
+        """Queue the words of the rest of the next line holding a word (of its next
+        _LINE_CHUNK_BYTES when it is longer: then only its next word)."""
+        head, data = self.head, self.data
         while self.pos >= len(self.items):
             if self.done:
                 return False
-            match = _WORD.search(self.data, self.scan, head.end)
+            match = _WORD.search(data, self.scan, head.end)
             if match is None:
                 if not head.complete:
                     head.out_of_data(self.line)
                 self._advance_to(head.end)
                 self.done, self.last_line = True, self.line
                 return False
-            start, stop = match.span()
-            if stop == head.end and not head.complete:
-                head.out_of_data(self.line)
+            start = match.start()
             self._advance_to(start)
-            word = match.group()
-            if len(word) > MAX_WORD_BYTES:
-                raise InputError(
-                    f"line {self.line}: a word of more than {MAX_WORD_BYTES:,} bytes "
-                    f"({shown(decode(word[:40]))}...): not a BVH hierarchy",
-                    head.path,
-                )
-            if word.upper() == b"MOTION":
-                alone = _MOTION_AT.match(self.data, self.line_start, head.end)
+            if match.group().upper() == b"MOTION":
+                alone = _MOTION_AT.match(data, self.line_start, head.end)
                 if alone is not None:
                     if alone.end() == head.end and not head.complete:
                         head.out_of_data(self.line)
                     self.done, self.last_line = True, self.line
                     self.motion_end = alone.end()
                     return False
+            limit = min(head.end, start + _LINE_CHUNK_BYTES)
+            newline = data.find(b"\n", start, limit)
+            whole_line = newline >= 0 or (head.complete and limit == head.end)
+            if whole_line:
+                stop = head.end if newline < 0 else newline
+            elif limit == head.end:
+                head.out_of_data(self.line)  # the line goes on past the bytes read
+            else:
+                stop = match.end()  # a very long line: one word at a time
+                if stop == head.end and not head.complete:
+                    head.out_of_data(self.line)
+            piece = data[start:stop]
+            if len(piece) > MAX_WORD_BYTES:
+                longest = max(piece.split(), key=len)
+                if len(longest) > MAX_WORD_BYTES:
+                    raise InputError(
+                        f"line {self.line}: a word of more than {MAX_WORD_BYTES:,} bytes "
+                        f"({shown(decode(longest[:40]))}...): not a BVH hierarchy",
+                        head.path,
+                    )
             self.scan = stop
-            self.items = [(text, self.line) for text in decode(word).split()]
+            self.items = [(text, self.line) for text in decode(piece).split()]
             self.pos = 0
+            self.whole_line = whole_line
         return True
 
     def peek(self) -> tuple[str, int] | None:
+        if self.pos < len(self.items):
+            return self.items[self.pos]
         return self.items[self.pos] if self._fill() else None
 
     def next(self) -> tuple[str, int] | None:
@@ -189,13 +207,17 @@ class Words:
         because together (joined by spaces) they pass ``max_chars`` characters."""
         out: list[str] = []
         size = -1
-        while (item := self.peek()) is not None and item[1] == line:
-            size += len(item[0]) + 1
+        while True:
+            if self.pos >= len(self.items) and (self.whole_line or not self._fill()):
+                return out, False  # the queue held the rest of the line, or the words ended
+            word, word_line = self.items[self.pos]
+            if word_line != line:
+                return out, False
+            size += len(word) + 1
             if size > max_chars:
                 return out, True
-            out.append(item[0])
+            out.append(word)
             self.pos += 1
-        return out, False
 
 
 def _grown(handle: BinaryIO, data: bytearray, size: int) -> bytearray:
