@@ -90,24 +90,31 @@ class ArrayStats:
 
 def block_counts(block: np.ndarray, expected: tuple[float, float, str] | None) -> dict[str, Any]:
     """Counts over one block of values: n, nan, inf, out_of_range (finite values outside the
-    expected range), and finite sum, min, max (None when no value is finite)."""
-    values = np.asarray(block)
-    is_float = values.dtype.kind in "fc"
-    finite_mask = np.isfinite(values) if is_float else np.ones(values.shape, bool)
-    finite = values[finite_mask].astype(np.float64)
+    expected range), and finite sum, min, max (None when no value is finite).
+
+    Reductions run on the block as stored (sum accumulated in float64); only a block that
+    holds NaN or Inf is copied to drop them."""
+    values = np.asarray(block).reshape(-1)
+    nan = inf = 0
+    if values.dtype.kind in "fc":
+        n_finite = int(np.count_nonzero(np.isfinite(values)))
+        if n_finite < values.size:
+            nan = int(np.count_nonzero(np.isnan(values)))
+            inf = values.size - n_finite - nan
+            values = values[np.isfinite(values)]
     out = {
-        "n": int(values.size),
-        "nan": int(np.isnan(values).sum()) if is_float else 0,
-        "inf": int(np.isinf(values).sum()) if is_float else 0,
+        "n": int(values.size) + nan + inf,
+        "nan": nan,
+        "inf": inf,
         "out_of_range": 0,
-        "sum": float(finite.sum()),
-        "finite": int(finite.size),
-        "min": float(finite.min()) if finite.size else None,
-        "max": float(finite.max()) if finite.size else None,
+        "sum": float(values.sum(dtype=np.float64)),
+        "finite": int(values.size),
+        "min": float(values.min()) if values.size else None,
+        "max": float(values.max()) if values.size else None,
     }
-    if expected is not None and finite.size:
+    if expected is not None and values.size:
         low, high, _ = expected
-        out["out_of_range"] = int(((finite < low) | (finite > high)).sum())
+        out["out_of_range"] = int(np.count_nonzero(values < low) + np.count_nonzero(values > high))
     return out
 
 
