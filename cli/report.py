@@ -27,7 +27,8 @@ def report(
     from dancedata.viz.extras import require
 
     require("matplotlib", "dancedata report")
-    from dancedata.viz.report import build_report, write_report
+    from dancedata.viz.report import build_report, check_report_path, write_report
 
+    check_report_path(out)
     html = build_report(store, version, gallery=gallery)
     typer.echo(f"report: wrote {write_report(html, out)} ({len(html.encode()) / 1e6:.2f} MB)")

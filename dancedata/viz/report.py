@@ -390,11 +390,17 @@ def build_report(
     )
 
 
-def write_report(html_text: str, out: str | Path) -> Path:
-    """Write the page to ``out`` through a temporary file and a rename (never half-written)."""
+def check_report_path(out: str | Path) -> Path:
+    """``out`` as a Path when its folder exists, else an InputError (checked before building)."""
     out = Path(out)
     if not out.parent.is_dir():
         raise InputError("output folder does not exist", out.parent)
+    return out
+
+
+def write_report(html_text: str, out: str | Path) -> Path:
+    """Write the page to ``out`` through a temporary file and a rename (never half-written)."""
+    out = check_report_path(out)
     tmp = out.with_name(f".{out.name}.tmp{os.getpid()}")
     try:
         tmp.write_text(html_text, encoding="utf-8")
