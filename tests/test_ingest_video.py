@@ -248,7 +248,8 @@ def test_audio_track_without_pyav_asks_for_the_extra(real_data: Path, tmp_path: 
 def test_video_audio_track_read_with_pyav(tmp_path: Path) -> None:
     """A video whose own audio track (written with PyAV, lossless PCM in MOV) is the music, on a
     PATH without ffmpeg: ingest describes the very samples written (rate, length, channels) and
-    estimates from them the tempo librosa finds on the original samples."""
+    estimates from them the tempo librosa finds on the original samples; featurize computes the
+    same features from it as from the same samples in a WAV file."""
     import librosa
 
     from tests.av_media import write_video_with_audio
@@ -272,6 +273,20 @@ def test_video_audio_track_read_with_pyav(tmp_path: Path) -> None:
     tempo, _ = librosa.beat.beat_track(y=stereo.mean(axis=0), sr=sr, hop_length=512)
     assert row["bpm_estimated"] and row["bpm"] == pytest.approx(float(np.atleast_1d(tempo)[0]))
     assert row["bpm"] == pytest.approx(120.0, rel=0.05)
+
+    # featurize decodes the track from the video too (PyAV, no ffmpeg): the same features as
+    # from the same mono samples in a WAV file given with --music.
+    wav = tmp_path / "mixdown.wav"
+    sf.write(wav, stereo.mean(axis=0), sr, subtype="FLOAT")
+    reference = tmp_path / "reference"
+    run_cli(*args[:6], str(reference), "--music", str(wav), "--bpm", str(row["bpm"]), "-q")
+    for folder in (store, reference):
+        run_cli("featurize", str(folder), "--stems", "none", "-q", env={"PATH": str(tmp_path)})
+    track, ref = dancedata.open_store(store), dancedata.open_store(reference)
+    for name in ("onset_env", "mfcc", "beats"):
+        np.testing.assert_allclose(
+            track.audio("clip", name), ref.audio("clip", name), rtol=1e-5, atol=1e-5
+        )
 
 
 # ----------------------------------------------------------------------------- generated videos

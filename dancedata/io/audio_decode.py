@@ -3,7 +3,8 @@
 :func:`decode_mono` reads a file (a path or an open binary handle) with libsndfile, which picks
 the decoder from the content, never from the extension: a FLAC named ``.wav`` decodes as the
 FLAC it is (WAV, FLAC, OGG/Vorbis, MP3 and the other libsndfile formats). Content libsndfile
-cannot read falls back to librosa/audioread by path (e.g. a video's AAC track through ffmpeg).
+cannot read falls back to librosa/audioread by path (e.g. a video's AAC track through ffmpeg),
+then to PyAV when the ``viz`` extra is installed (no ffmpeg program needed).
 
 Bounded memory: at most ``max_seconds`` from the start are read (``ceil(max_seconds × sr_native)``
 frames), in blocks of :data:`BLOCK_FRAMES` frames, each mixed down to mono before the next is
@@ -179,7 +180,10 @@ def _decode_with_librosa(path: Path, sr: int, max_seconds: float | None) -> Deco
             warnings.simplefilter("ignore")
             y, native_sr = librosa.load(str(path), sr=None, mono=False, duration=max_seconds)
     except Exception as exc:  # audioread/soundfile raise many unrelated types
-        raise _undecodable(path, exc) from None
+        decoded = _decode_with_av(path, max_seconds)
+        if decoded is None:
+            raise _undecodable(path, exc) from None
+        y, native_sr = decoded
     frames = np.atleast_2d(y).T  # (frames, channels)
     if frames.shape[0] == 0:
         raise InputError("audio file holds no samples", path)
@@ -195,6 +199,20 @@ def _decode_with_librosa(path: Path, sr: int, max_seconds: float | None) -> Deco
         header,
         frames.shape[1],
     )
+
+
+def _decode_with_av(path: Path, max_seconds: float | None) -> tuple[np.ndarray, int] | None:
+    """(channels, n) float32 and the rate of the first audio stream through PyAV (the ``viz``
+    extra: a video's own audio track without the ffmpeg program), at most ``max_seconds`` of it;
+    None when PyAV is absent or cannot decode it either."""
+    from dancedata.io.av_audio import av_available, decode_audio_track
+
+    if not av_available():
+        return None
+    try:
+        return decode_audio_track(path, max_seconds)
+    except InputError:
+        return None
 
 
 def _undecodable(path: Path, exc: BaseException) -> InputError:

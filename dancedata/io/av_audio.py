@@ -10,6 +10,7 @@ file.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -60,11 +61,14 @@ def has_audio_stream(path: str | Path) -> bool:
         raise InputError(f"cannot open as a media file ({exc})", path) from None
 
 
-def decode_audio_track(path: str | Path) -> tuple[np.ndarray, int]:
+def decode_audio_track(
+    path: str | Path, max_seconds: float | None = None
+) -> tuple[np.ndarray, int]:
     """Decode the first audio stream of ``path``: ((channels, n) float32, sample rate in Hz).
 
     Every frame is converted to planar float (``fltp``) at the stream's own rate and channel
-    layout by FFmpeg's resampler, so the samples are exactly the decoder's output.
+    layout by FFmpeg's resampler, so the samples are exactly the decoder's output. With
+    ``max_seconds``, decoding stops after ``ceil(max_seconds × rate)`` samples (bounded memory).
 
     Raises:
         InputError: naming the file, when it has no audio stream, holds no samples, cannot be
@@ -85,12 +89,18 @@ def decode_audio_track(path: str | Path) -> tuple[np.ndarray, int]:
             rate = int(stream.codec_context.sample_rate or 0)
             if rate <= 0:
                 raise InputError("the audio track reports no sample rate", path)
+            limit = None if max_seconds is None else math.ceil(max(max_seconds, 0.0) * rate)
             resampler = av.AudioResampler(format="fltp", rate=rate)
+            held = 0
             for frame in container.decode(stream):
                 for converted in resampler.resample(frame):
                     chunks.append(converted.to_ndarray())
-            for converted in resampler.resample(None):  # flush
-                chunks.append(converted.to_ndarray())
+                    held += chunks[-1].shape[1]
+                if limit is not None and held >= limit:
+                    break
+            else:
+                for converted in resampler.resample(None):  # flush
+                    chunks.append(converted.to_ndarray())
     except av.FFmpegError as exc:
         raise InputError(f"cannot decode the audio track ({exc})", path) from None
     if not chunks:
@@ -99,6 +109,8 @@ def decode_audio_track(path: str | Path) -> tuple[np.ndarray, int]:
     if len(channels) != 1:
         raise InputError(f"the audio track changes channel count ({sorted(channels)})", path)
     samples = np.concatenate(chunks, axis=1).astype(np.float32, copy=False)
+    if max_seconds is not None:
+        samples = samples[:, : math.ceil(max(max_seconds, 0.0) * rate)]
     if samples.shape[1] == 0:
         raise InputError("the audio track holds no samples", path)
     return np.ascontiguousarray(samples), rate
