@@ -11,12 +11,12 @@ import subprocess
 import sys
 
 import numpy as np
-import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 import zarr
 
 from tests.helpers import importorskip_unless_ci, run_cli
+from tests.viz_helpers import write_keyframes_table
 
 importorskip_unless_ci("matplotlib")
 
@@ -148,30 +148,7 @@ def test_keyframes_panel_draws_each_strategy_at_its_frames(store, tmp_path):
     copy = tmp_path / "store"
     shutil.copytree(store, copy)
     vdir, seqs, _, _ = _raw(copy)
-    measures = pq.read_table(vdir / "measures.parquet").to_pylist()
-    rows = []
-    for strategy, n in (("even", 3), ("peaks:onset", 5)):
-        for m in measures:
-            length = m["frame_stop"] - m["frame_start"]
-            local = np.floor(np.arange(n) * (length - 1) / (n - 1) + 0.5).astype(int)
-            if strategy != "even":
-                local[1:-1] += 1  # any distinct interior frames will do
-            for k, f in enumerate(local):
-                rows.append(
-                    {
-                        "run_id": f"run-{strategy}",
-                        "seq_id": m["seq_id"],
-                        "measure": m["measure"],
-                        "strategy": strategy,
-                        "n_keyframes": n,
-                        "k": k,
-                        "frame": int(f),
-                        "frame_in_sequence": m["frame_start"] + int(f),
-                        "source": "edge" if k in (0, n - 1) else "even",
-                        "score": float("nan"),
-                    }
-                )
-    pq.write_table(pa.Table.from_pylist(rows), vdir / "keyframes.parquet")
+    rows = write_keyframes_table(vdir)
     seq_id, seq = next(iter(seqs.items()))
     fig = sequence_figure(copy, seq_id)
     drawn = {

@@ -21,6 +21,7 @@ import pytest
 import zarr
 
 from tests.helpers import importorskip_unless_ci, run_cli
+from tests.viz_helpers import write_keyframes_table
 
 importorskip_unless_ci("matplotlib")
 
@@ -193,6 +194,24 @@ def test_skipped_inputs_are_listed_with_reasons(tmp_path):
     _check_against_info(cells, _info(store))
     assert cells["skipped"] == "1"
     assert str(bad) in html_text and "shape (10, 70)" in html_text
+
+
+def test_keyframes_and_measure_lengths(store, tmp_path):
+    copy = tmp_path / "store"
+    shutil.copytree(store, copy)
+    plain = build_report(copy, gallery=0)
+    assert 'id="keyframes"' not in plain  # no table, no section
+    rows = write_keyframes_table(copy / "versions" / "v3")
+    html_text = build_report(copy, gallery=0)
+    section = html_text[html_text.index('id="keyframes"') :].split("</section>")[0]
+    n_measures = len({(r["seq_id"], r["measure"]) for r in rows})
+    even = [r for r in rows if r["strategy"] == "even"]
+    assert (
+        f'<td>even</td><td class="num">3</td><td class="num">{len(even)}</td>'
+        f'<td class="num">{n_measures}</td><td class="num">1</td>'
+    ) in section
+    assert f"edge {2 * n_measures}, peak {3 * n_measures}" in section
+    assert "measures (time_stop − time_start)" in html_text
 
 
 def test_gallery_spans_genres():

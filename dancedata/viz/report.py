@@ -32,6 +32,7 @@ from dancedata.errors import DancedataError, InputError
 from dancedata.store.reader import VersionReader
 from dancedata.store.summary import lineage, summarize
 from dancedata.viz import report_html as h
+from dancedata.viz.plot_data import read_keyframes
 from dancedata.viz.report_counts import (
     count_by,
     duration_histogram,
@@ -173,11 +174,14 @@ def _counts(info: dict[str, Any], sequences: list[dict[str, Any]]) -> str:
     return h.section("counts", "Counts", body)
 
 
-def _durations(sequences: list[dict[str, Any]], music: list[dict[str, Any]]) -> str:
+def _durations(
+    sequences: list[dict[str, Any]], music: list[dict[str, Any]], measures: list[dict[str, Any]]
+) -> str:
     parts = []
     for label, seconds in (
         ("sequences (n_frames / fps)", sequence_durations(sequences)),
         ("music tracks (duration_s)", [float(m["duration_s"]) for m in music]),
+        ("measures (time_stop − time_start)", [m["time_stop"] - m["time_start"] for m in measures]),
     ):
         s = duration_summary(seconds)
         if not s["n"]:
@@ -209,6 +213,38 @@ def _durations(sequences: list[dict[str, Any]], music: list[dict[str, Any]]) -> 
             + "</div>"
         )
     return h.section("durations", "Durations", f'<div class="grid">{"".join(parts)}</div>')
+
+
+def _keyframes(rows: list[dict[str, Any]]) -> str:
+    """Per (strategy, N): keyframe rows, measures covered, runs, and keyframes per source."""
+    groups: dict[tuple[str, int], dict[str, Any]] = {}
+    for r in rows:
+        g = groups.setdefault(
+            (str(r["strategy"]), int(r["n_keyframes"])),
+            {"rows": 0, "measures": set(), "runs": set(), "sources": {}},
+        )
+        g["rows"] += 1
+        g["measures"].add((r["seq_id"], r["measure"]))
+        g["runs"].add(r.get("run_id"))
+        source = str(r.get("source"))
+        g["sources"][source] = g["sources"].get(source, 0) + 1
+    table_rows = [
+        [
+            strategy,
+            n,
+            g["rows"],
+            len(g["measures"]),
+            len(g["runs"]),
+            ", ".join(f"{k} {v}" for k, v in sorted(g["sources"].items())),
+        ]
+        for (strategy, n), g in sorted(groups.items())
+    ]
+    body = "<p>The version's <code>keyframes</code> table (one row per keyframe).</p>" + h.table(
+        ["strategy", "N", "keyframes", "measures", "runs", "by source"],
+        table_rows,
+        numeric={1, 2, 3, 4},
+    )
+    return h.section("keyframes", "Keyframes", body)
 
 
 def _skipped(chain: list[dict[str, Any]]) -> str:
@@ -360,6 +396,8 @@ def build_report(
     chain = lineage(reader.layout, reader.version)
     sequences = reader.table("sequences").to_pylist() if reader.has_table("sequences") else []
     music = reader.table("music").to_pylist() if reader.has_table("music") else []
+    measures = reader.table("measures").to_pylist() if reader.has_table("measures") else []
+    keyframes = read_keyframes(reader)
     stats = [
         array_stats(reader.array(name), name, max_hist_rows=max_hist_rows)
         for name in reader.array_names()
@@ -367,9 +405,10 @@ def build_report(
     sections = [
         _overview(info),
         _counts(info, sequences),
-        _durations(sequences, music),
+        _durations(sequences, music, measures),
         _lineage(chain),
         _skipped(chain),
+        *([_keyframes(keyframes)] if keyframes else []),
         _features(stats),
     ]
     if gallery > 0 and sequences:
