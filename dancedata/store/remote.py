@@ -202,6 +202,8 @@ class RemoteLock:
             return {}
 
     def acquire(self) -> None:
+        if self.record is not None:
+            return  # already ours (taken by hold_store_lock before the plan)
         deadline = time.monotonic() + self.timeout_s
         announced = False
         while True:
