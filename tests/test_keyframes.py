@@ -395,3 +395,14 @@ def test_keyframes_cli_parameters_reach_the_manifest(small_store: Path) -> None:
     bad = run_cli("keyframes", str(small_store), "--strategy", "random", check=False)
     assert bad.returncode == 1
     assert bad.stderr.strip().splitlines()[-1].startswith("error: unknown keyframe strategy")
+
+
+def test_measures_too_short_for_an_n_are_skipped_and_reported(small_store: Path) -> None:
+    from dancedata.pipeline.keyframes import KeyframesOptions, keyframes
+
+    result = keyframes(small_store, KeyframesOptions(strategies=["even"], n_keyframes=[3, 10_000]))
+    assert result.counts["runs"]["even@10000"] == 0
+    assert result.counts["runs"]["even@3"] == result.counts["measures"] > 0
+    assert result.skipped and all("too few for N = 10000" in s["error"] for s in result.skipped)
+    with pytest.raises(InputError, match="every measure was left out"):
+        keyframes(small_store, KeyframesOptions(strategies=["dp"], n_keyframes=[10_000]))

@@ -279,9 +279,13 @@ def _select(
 ) -> dict[int, list[Selection]]:
     """Every requested N of one strategy over ``rows``, batched by measure length."""
     params = options.params
-    totals = {n: params.total_keyframes(n) for n in options.n_keyframes}
+    totals_all = {n: params.total_keyframes(n) for n in options.n_keyframes}
     out: dict[int, list[Selection]] = defaultdict(list)
     for length, group in measures.groups(rows).items():
+        # N values this length can hold (shorter measures were reported as skipped)
+        totals = {n: t for n, t in totals_all.items() if t <= length}
+        if not totals:
+            continue
         if strategy == "even":
             for n, total in totals.items():
                 idx, src, score = even_batch(group.size, length, total)
@@ -346,7 +350,7 @@ def _table(selections: list[tuple[str, int, str, list[Selection]]], measures: Me
         return np.concatenate(columns[name]) if columns[name] else np.zeros(0)
 
     rows = np.concatenate(seq_rows) if seq_rows else np.zeros(0, dtype=np.int64)
-    seq_ids = np.asarray(measures.seq_id, dtype=object)[rows] if rows.size else np.zeros(0)
+    seq_ids = np.asarray(measures.seq_id, dtype=object)[rows] if rows.size else []
     names = np.asarray(KEYFRAME_SOURCES, dtype=object)
     table = pa.table(
         {
@@ -420,17 +424,20 @@ def _keyframes_locked(store: str | Path, options: KeyframesOptions, lock: Any) -
     everything = np.arange(len(measures.seq_id))
     selections: list[tuple[str, int, str, list[Selection]]] = []
     skipped: dict[tuple[str, str], str] = {}
-    counts: dict[str, Any] = {"measures": int(everything.size), "seconds": {}}
-    min_total = options.params.total_keyframes(min(options.n_keyframes))
-    max_total = options.params.total_keyframes(max(options.n_keyframes))
+    per_run: dict[str, int] = {}
+    counts: dict[str, Any] = {"measures": int(everything.size), "seconds": {}, "runs": per_run}
+    totals = {n: options.params.total_keyframes(n) for n in options.n_keyframes}
     euler_rows = None
     for strategy in options.strategies:
         began = time.perf_counter()
-        rows = everything[measures.length >= max_total]
-        for i in everything[measures.length < max_total].tolist():
+        smallest = min(totals.values())
+        rows = everything[measures.length >= smallest]
+        for i in everything[measures.length < max(totals.values())].tolist():
+            length = int(measures.length[i])
+            too_many = [n for n, t in totals.items() if t > length]
             skipped[(measures.seq_id[i], strategy)] = (
-                f"{strategy}: measure {int(measures.measure[i])} has {int(measures.length[i])} "
-                f"frames, fewer than N = {max_total} (min requested {min_total})"
+                f"{strategy}: measure {int(measures.measure[i])} has {length} frames, too few "
+                f"for N = {', '.join(map(str, too_many))}"
             )
         curves = None
         if strategy.startswith("peaks:"):
@@ -444,10 +451,15 @@ def _keyframes_locked(store: str | Path, options: KeyframesOptions, lock: Any) -
             euler_rows = EulerRows(reader, sequences, options.params, euler_order)
         found = _select(strategy, measures, rows, options, curves, euler_rows)
         for n in options.n_keyframes:
-            selections.append((run_ids[f"{strategy}@{n}"], n, strategy, found.get(n, [])))
+            parts = found.get(n, [])
+            selections.append((run_ids[f"{strategy}@{n}"], n, strategy, parts))
+            per_run[f"{strategy}@{n}"] = int(sum(p.rows.size for p in parts))
         counts["seconds"][strategy] = round(time.perf_counter() - began, 3)
         counts[f"measures_{strategy}"] = int(rows.size)
     table = _table(selections, measures)
+    if table.num_rows == 0:
+        why = next(iter(skipped.values()), "the version has no measures")
+        raise InputError(f"no keyframes to write: every measure was left out ({why})")
     counts["rows"] = table.num_rows
     counts["units"] = 1
     counts["resumed_units"] = 0
