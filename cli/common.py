@@ -15,7 +15,9 @@ Json = Annotated[
 Wait = Annotated[
     bool,
     typer.Option(
-        "--wait", help="If another writer holds the store lock, wait for it instead of failing."
+        "--wait",
+        help="If another writer holds the store lock, wait for it instead of failing; the "
+        "command then works from the store as that writer left it.",
     ),
 ]
 Workers = Annotated[
