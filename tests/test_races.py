@@ -160,3 +160,34 @@ def test_second_ingest_of_the_same_data_waiting_for_the_lock_adds_no_duplicate(
     fingerprints = [StoreLayout(store).read_manifest(v)["fingerprint"] for v in committed]
     assert len(set(fingerprints)) == len(fingerprints)
     assert all("v3" in out for out in outs)
+
+
+def test_a_writer_based_on_a_version_that_is_no_longer_latest_refuses(store):
+    """``based_on`` (for commands that read the latest version's data before the lock, such as
+    an append): once another writer has committed, the write is refused with one line instead
+    of dropping that writer's version; the store is left as it was."""
+    from dancedata.errors import StoreError
+    from dancedata.pipeline.segment import SegmentOptions, segment
+    from dancedata.store.writer import VersionWriter
+
+    read_before_the_lock = StoreLayout(store).latest()
+    assert segment(store, SegmentOptions()).version == "v2"  # another writer got in first
+    writer = VersionWriter(
+        store,
+        command="test",
+        config={},
+        fingerprint="f" * 64,
+        parent="v1",
+        carry_over=False,
+        based_on=read_before_the_lock,
+    )
+    changed = "read v1, the latest version is now v2; run it again"
+    with pytest.raises(StoreError, match=changed), writer:
+        pass
+    assert StoreLayout(store).committed_versions() == ["v1", "v2"]
+    assert StoreLayout(store).temp_dirs() == []
+    assert not (store / LOCK_FILE).exists()
+    with VersionWriter(
+        store, command="test", config={}, fingerprint="f" * 64, parent="v2", based_on="v2"
+    ) as version:
+        assert version.commit() == "v3"

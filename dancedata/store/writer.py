@@ -161,6 +161,7 @@ class VersionWriter:
         parent_stages: dict[str, str] | None = None,
         resumable: bool = False,
         lock: Any = None,
+        based_on: str | None = None,
     ) -> None:
         self.layout = StoreLayout(store)
         # Which fingerprint produced each stage of this version's data ("ingest", "featurize",
@@ -180,6 +181,10 @@ class VersionWriter:
         # ``lock``: one the caller already holds (see hold_store_lock); released at commit.
         self._lock = lock if lock is not None else StoreLock(self.layout.root, wait=wait_for_lock)
         self.tmp: Path | None = None
+        # ``based_on``: the latest version the caller read its data from before taking the lock
+        # (ingest bvh --append); if another writer committed meanwhile, refuse rather than
+        # silently drop that writer's version (a lost update).
+        self.based_on = based_on
         # The committed version that already holds this fingerprint, found under the lock (a
         # writer that waited behind one producing the same result): commit() then adds nothing.
         self.existing: str | None = None
@@ -215,6 +220,7 @@ class VersionWriter:
             raise error from None
         try:
             self.existing = find_version_with_fingerprint(self.layout.root, self.fingerprint)
+            self._check_based_on()
             name = self.temp_name()
             self.cleaned_temps = clean_abandoned_temps(self.layout, keep=name)
             self.tmp = self.layout.versions_dir / name
@@ -235,6 +241,17 @@ class VersionWriter:
                 raise error from None
             raise
         return self
+
+    def _check_based_on(self) -> None:
+        if self.based_on is None or self.existing is not None:
+            return
+        latest = self.layout.latest()
+        if latest != self.based_on:
+            raise StoreError(
+                f"the store changed while this command waited for the lock: it read "
+                f"{self.based_on}, the latest version is now {latest}; run it again",
+                self.layout.root,
+            )
 
     def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
         error = storage_error(exc, self.layout.root, "writing a new version")  # type: ignore[arg-type]
@@ -365,10 +382,9 @@ class VersionWriter:
                 zarr.consolidate_metadata(str(zarr_path))
         name = self.layout.next_version_name()  # past damaged folders too: never collides
         manifest = self.manifest(name, counts)
-        # integrity (issue 8, 11.5): checksums.json of every data file and of the manifest, so
-        # the manifest goes first (the directory is invisible until the rename either way)
-        write_json_atomic(self.path / MANIFEST_FILE, manifest)
+        # integrity (issue 8): checksums.json of every data file, written just before the manifest
         record_checksums(self.path, self.layout.version_dir(self.parent) if self.parent else None)
+        write_json_atomic(self.path / MANIFEST_FILE, manifest)
         # The finished units' build state stays until the last moment, so a kill anywhere
         # before the commit rename still resumes them; it leaves by one rename of its own.
         spent = None
