@@ -211,15 +211,41 @@ def test_cli_writes_png_svg_pdf_and_rejects_bad_input(store, tmp_path):
 
 
 def test_older_version_without_features_still_plots(store, tmp_path):
-    """v1 (ingest only): waveform and joint angles are absent or present as the store has
-    them, and the figure says what is missing instead of failing."""
-    seq_id = next(iter(_raw(store)[1]))
+    """v1 (ingest only): no audio features, measures or Euler angles; the figure says what is
+    missing, and draws interior knee/elbow angles from motion/keypoints3d instead, checked
+    against the law of cosines."""
+    vdir, seqs, _, _ = _raw(store, "v1")
+    seq_id, seq = next(iter(seqs.items()))
     data = gather(store, seq_id, version="v1")
     assert data.onset_env is None and data.measure_bounds is None and not data.joint_angles_deg
     assert any("featurize" in n for n in data.notes) and any("segment" in n for n in data.notes)
+    assert data.interior_source == "motion/keypoints3d"
+    group = zarr.open_group(str(vdir / "data.zarr"), mode="r")
+    kp = np.asarray(group["motion/keypoints3d"][seq["frame_start"] : seq["frame_stop"]], float)
+    names = dict(group["motion/keypoints3d"].attrs)["skeleton"]["joints"]
+    for joint, (hip, ankle) in {
+        "left_knee": ("left_hip", "left_ankle"),
+        "right_elbow": ("right_shoulder", "right_wrist"),
+    }.items():
+        a, b, c = (kp[:, names.index(n)] for n in (hip, joint, ankle))
+        ab, bc, ac = (np.linalg.norm(x - y, axis=1) for x, y in ((a, b), (b, c), (a, c)))
+        expected = np.degrees(np.arccos((ab**2 + bc**2 - ac**2) / (2 * ab * bc)))
+        np.testing.assert_allclose(data.interior_angles_deg[joint], expected, atol=1e-6)
+        assert np.isnan(expected).any()  # the NaN frames of the twin stay NaN
     out = tmp_path / "v1.png"
     run_cli("plot", str(store), seq_id, str(out), "--version", "v1")
     assert out.stat().st_size > 5_000
+
+
+def test_interior_angles_closed_form():
+    from dancedata.viz.joint_angles import hinge_triples, interior_angles_deg
+
+    pts = np.array([[[0, 0], [1, 0], [1, 1]], [[0, 0], [1, 0], [2, 0]], [[0, 0], [0, 0], [1, 1]]])
+    angles = interior_angles_deg(pts, [(0, 1, 2)])[:, 0]
+    assert angles[0] == pytest.approx(90.0) and angles[1] == pytest.approx(180.0)
+    assert np.isnan(angles[2])  # zero-length bone
+    joints = ["hip", "LKnee", "ankle", "toe", "Elbow"]
+    assert hinge_triples(joints, [-1, 0, 1, 2, -1]) == [("LKnee", 0, 1, 2)]
 
 
 def test_no_interactive_backend_and_no_pyplot(store):

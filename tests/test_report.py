@@ -214,6 +214,17 @@ def test_keyframes_and_measure_lengths(store, tmp_path):
     assert "measures (time_stop − time_start)" in html_text
 
 
+def test_a_missing_genre_is_named_as_info_json_names_it():
+    """Video stores have no genre: info --json writes the None key as "null"."""
+    from dancedata.viz.report_html import bar_chart
+
+    chart = bar_chart({None: 2, "gBR": 1}, "genre", info_prefix="genres")
+    info = json.loads(json.dumps({"genres": {None: 2, "gBR": 1}}))
+    cells = _info_cells(chart)
+    assert cells == {"genres.null": "2", "genres.gBR": "1"} and "(none)" in chart
+    assert all(str(_lookup(info, k)) == v for k, v in cells.items())
+
+
 def test_gallery_spans_genres():
     rows = [{"seq_id": f"{g}{i}", "genre": g} for g in ("gPO", "gBR", "gJS") for i in range(3)]
     assert gallery_sequences(rows, 4) == ["gBR0", "gJS0", "gPO0", "gBR1"]

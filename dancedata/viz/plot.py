@@ -168,6 +168,20 @@ def frame_window(n_frames: int, start: int | None, stop: int | None) -> tuple[in
     return first, last
 
 
+def _panel_interior(ax: Axes, d: SequencePlotData) -> None:
+    t = d.seconds(np.arange(d.n_frames))
+    for j, (joint, angles) in enumerate(d.interior_angles_deg.items()):
+        ax.plot(
+            t[: angles.shape[0]],
+            angles,
+            color=JOINT_COLOURS[j % len(JOINT_COLOURS)],
+            linewidth=0.8,
+            label=joint,
+        )
+    ax.set_ylabel(f"interior joint\nangle (deg)\n{d.interior_source}")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.02), fontsize=6, frameon=False)
+
+
 def figure_from_data(
     d: SequencePlotData,
     *,
@@ -190,6 +204,8 @@ def figure_from_data(
         panels.append((_panel_keyframes, max(0.7, 0.28 * len(d.keyframes))))
     if d.joint_angles_deg:
         panels.append((_panel_joints, 1.4))
+    elif d.interior_angles_deg:
+        panels.append((_panel_interior, 1.2))
     heights = [h for _, h in panels]
     fig = Figure(figsize=(width, 1.0 + 1.25 * sum(heights)), dpi=dpi, layout="constrained")
     axes = fig.subplots(len(panels), 1, sharex=True, gridspec_kw={"height_ratios": heights})
@@ -216,10 +232,10 @@ def figure_from_data(
         f"{d.seq_id}  ·  {meta.get('genre') or '?'}  ·  {bpm}  ·  {d.n_frames} frames "
         f"({duration:.1f} s)  ·  version {d.version}"
     )
-    fig.suptitle(title, fontsize=9)
     missing = [n for n in d.notes if not n.startswith("waveform")]
-    if missing:
-        fig.text(0.01, 0.0, "; ".join(missing), fontsize=7, color="0.4", va="bottom")
+    if missing:  # what the store lacks, under the title
+        title += "\n" + "; ".join(missing)
+    fig.suptitle(title, fontsize=9)
     return fig
 
 

@@ -77,6 +77,8 @@ class SequencePlotData:
     keyframes: list[KeyframeTrack] = field(default_factory=list)
     joint_angles_deg: dict[str, np.ndarray] = field(default_factory=dict)
     euler_order: str = ""
+    interior_angles_deg: dict[str, np.ndarray] = field(default_factory=dict)
+    interior_source: str = ""
     notes: list[str] = field(default_factory=list)
 
     def seconds(self, frames: np.ndarray) -> np.ndarray:
@@ -188,6 +190,34 @@ def _joint_angles(
     )
 
 
+# Position arrays that interior joint angles are taken from when there is no motion/euler,
+# best first; pose2d keeps its x, y channels only.
+POSITION_ARRAYS: tuple[str, ...] = ("motion/positions", "motion/keypoints3d", "motion/pose2d")
+
+
+def _interior_angles(
+    store: DanceStore, seq_id: str, names: set[str]
+) -> tuple[dict[str, np.ndarray], str]:
+    from dancedata.viz.joint_angles import hinge_triples, interior_angles_deg
+
+    for array in POSITION_ARRAYS:
+        if array not in names:
+            continue
+        attrs = dict(store.zarr(array).attrs)
+        skeleton = attrs.get("skeleton") or store._reader.group_attrs("motion").get("skeleton")
+        if not skeleton or "parents" not in skeleton:
+            continue
+        triples = hinge_triples(skeleton["joints"], skeleton["parents"])
+        if not triples:
+            continue
+        points = store.motion(seq_id, array.split("/", 1)[1])
+        if array == "motion/pose2d":
+            points = points[..., :2]
+        angles = interior_angles_deg(points, [t[1:] for t in triples])
+        return {t[0]: angles[:, k] for k, t in enumerate(triples)}, array
+    return {}, ""
+
+
 def gather(
     store: DanceStore | str | Path,
     seq_id: str,
@@ -250,4 +280,6 @@ def gather(
         data.keyframes = keyframe_tracks(kf_rows, seq_id)
     if "motion/euler" in names:
         data.joint_angles_deg, data.euler_order = _joint_angles(ds, seq_id, joints, len(joints))
+    else:
+        data.interior_angles_deg, data.interior_source = _interior_angles(ds, seq_id, names)
     return data

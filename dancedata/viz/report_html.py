@@ -6,6 +6,7 @@ network and no image files; every string from a store is escaped."""
 from __future__ import annotations
 
 import html
+import json
 import math
 from collections.abc import Iterable, Sequence
 from typing import Any
@@ -81,7 +82,7 @@ def table(
 
 
 def bar_chart(
-    counts: dict[str, int],
+    counts: dict[Any, int],
     title: str,
     width: int = 320,
     bar_h: int = 16,
@@ -92,7 +93,7 @@ def bar_chart(
     ``info --json`` field it shows."""
     if not counts:
         return f'<p class="muted">{esc(title)}: none</p>'
-    label_w = min(150, 14 + 8 * max(len(k) for k in counts))
+    label_w = min(150, 14 + 8 * max(len(_shown(k)) for k in counts))
     top = max(counts.values()) or 1
     span = width - label_w - 40
     height = bar_h * len(counts) + 4
@@ -102,7 +103,7 @@ def bar_chart(
         w = max(1.0, span * n / top)
         parts.append(
             f'<text x="{label_w - 6}" y="{y + bar_h - 4}" text-anchor="end" font-size="11">'
-            f"{esc(key)}</text>"
+            f"{esc(_shown(key))}</text>"
             f'<rect x="{label_w}" y="{y + 2}" width="{w:.1f}" height="{bar_h - 4}" '
             f'fill="{BAR_COLOUR}"/>'
             f'<text x="{label_w + w + 4:.1f}" y="{y + bar_h - 4}" font-size="11"'
@@ -112,8 +113,19 @@ def bar_chart(
     return f"<div><h3>{esc(title)}</h3>{''.join(parts)}</div>"
 
 
-def _info_attr(prefix: str | None, key: str) -> str:
-    return f' data-info="{esc(prefix)}.{esc(key)}"' if prefix else ""
+def _shown(key: Any) -> str:
+    """A count's label: the key, or "(none)" for a missing value."""
+    return "(none)" if key is None else str(key)
+
+
+def json_key(key: Any) -> str:
+    """``key`` as ``json.dumps`` writes it as an object key (None → "null"), so data-info
+    names the field exactly as ``info --json`` prints it."""
+    return next(iter(json.loads(json.dumps({key: 0}))))
+
+
+def _info_attr(prefix: str | None, key: Any) -> str:
+    return f' data-info="{esc(prefix)}.{esc(json_key(key))}"' if prefix else ""
 
 
 def histogram_svg(
