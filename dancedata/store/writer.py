@@ -382,9 +382,10 @@ class VersionWriter:
                 zarr.consolidate_metadata(str(zarr_path))
         name = self.layout.next_version_name()  # past damaged folders too: never collides
         manifest = self.manifest(name, counts)
-        # integrity (issue 8): checksums.json of every data file, written just before the manifest
-        record_checksums(self.path, self.layout.version_dir(self.parent) if self.parent else None)
+        # integrity (issue 8, 11.5): checksums.json of every data file and of the manifest, so
+        # the manifest goes first (the directory is invisible until the rename either way)
         write_json_atomic(self.path / MANIFEST_FILE, manifest)
+        record_checksums(self.path, self.layout.version_dir(self.parent) if self.parent else None)
         # The finished units' build state stays until the last moment, so a kill anywhere
         # before the commit rename still resumes them; it leaves by one rename of its own.
         spent = None
