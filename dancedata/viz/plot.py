@@ -13,6 +13,12 @@ measure's first frame and the last one's end, from the ``measures`` table; grey,
 panel; ``gid="measures"``) and tracked beats (``audio/beats``; red dashed, in the waveform and
 onset panels; ``gid="beats"``). They are ``vlines`` LineCollections whose x data are exactly
 frame / fps, so they can be read back from the figure.
+
+Joint angles: the stored ``motion/euler`` of a few joints, in degrees, components labelled by
+the stored axis order (principal branch, so ±180° wraps show as jumps). Stores without joint
+rotations (video poses, an ingest-only AIST++ version) get the interior knee and elbow angles
+from their positions instead (:mod:`dancedata.viz.joint_angles`). Panels whose data the version
+lacks are left out, and the title says what is missing.
 """
 
 from __future__ import annotations
