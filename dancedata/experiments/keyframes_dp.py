@@ -213,14 +213,49 @@ def segment_errors(x: np.ndarray, keyframes: np.ndarray, distance: str = "vertic
         r_dot_v = np.sum(resid * v, axis=-1)
         dist2 = dist2 - r_dot_v**2 / (np.sum(v**2, axis=-1) + (b - a) ** 2)
     dist = np.sqrt(np.maximum(dist2, 0.0))
-    out = np.zeros((m, kf.shape[1] - 1))
-    rows = np.repeat(np.arange(m), length)
-    np.maximum.at(out, (rows, seg.reshape(-1)), dist.reshape(-1))
-    return out
+    # segment ids m·(N−1) + seg never decrease along the flattened frames, and every segment
+    # holds at least one frame (its right keyframe): one reduceat gives every segment's max
+    n_seg = kf.shape[1] - 1
+    flat = (np.arange(m)[:, None] * n_seg + seg).reshape(-1)
+    starts = np.flatnonzero(np.r_[True, flat[1:] != flat[:-1]])
+    return np.maximum.reduceat(dist.reshape(-1), starts).reshape(m, n_seg)
+
+
+_DP_KERNELS: dict[bool, Any] = {}
+
+
+def _dp_kernel(use_sum: bool) -> Any:  # pragma: no cover - runs whenever numba imports
+    """The recurrence of :func:`dp_tables` as a compiled loop, one specialisation per combine:
+    same candidates, same strict ``<`` over increasing j (the smallest j wins ties)."""
+    if use_sum not in _DP_KERNELS:
+        import numba
+
+        add = bool(use_sum)
+
+        @numba.njit(cache=False)
+        def kernel(errors, max_keyframes, costs, back):
+            m, length, _ = errors.shape
+            for mm in range(m):
+                e = errors[mm]
+                for k in range(3, max_keyframes + 1):
+                    prev = costs[k - 1, mm]
+                    for t in range(length):
+                        best = np.inf
+                        arg = 0
+                        for j in range(t):
+                            value = prev[j] + e[j, t] if add else max(prev[j], e[j, t])
+                            if value < best:
+                                best = value
+                                arg = j
+                        costs[k, mm, t] = best
+                        back[k, mm, t] = arg
+
+        _DP_KERNELS[use_sum] = kernel
+    return _DP_KERNELS[use_sum]
 
 
 def dp_tables(
-    errors: np.ndarray, max_keyframes: int, combine: str = "max"
+    errors: np.ndarray, max_keyframes: int, combine: str = "max", engine: str = "auto"
 ) -> tuple[np.ndarray, np.ndarray]:
     """The DP over a batch: costs ``C[k, m, t]`` and back-pointers ``back[k, m, t]`` for
     k = 2 … max_keyframes (rows 0 and 1 unused).
@@ -229,9 +264,12 @@ def dp_tables(
         errors: (M, L, L) segment errors from :func:`segment_error_table`.
         max_keyframes: the largest N wanted; every smaller N is read off the same tables.
         combine: ``max`` (minimax) or ``sum``.
+        engine: ``numba``, ``numpy`` or ``auto`` (as :func:`segment_error_table`).
     """
     if combine not in DP_COMBINES:
         raise InputError(f"unknown DP combine {combine!r}; known: {', '.join(DP_COMBINES)}")
+    if engine not in ENGINES:
+        raise InputError(f"unknown engine {engine!r}; known: {', '.join(ENGINES)}")
     m, length, _ = errors.shape
     if max_keyframes < 2 or max_keyframes > length:
         raise InputError(
@@ -240,6 +278,9 @@ def dp_tables(
     costs = np.full((max_keyframes + 1, m, length), np.inf)
     back = np.zeros((max_keyframes + 1, m, length), dtype=np.int64)
     costs[2] = errors[:, 0, :]  # C_2(t) = e(0, t); e(0, 0) = inf
+    if engine == "numba" or (engine == "auto" and _numba_available()):
+        _dp_kernel(combine == "sum")(np.ascontiguousarray(errors), max_keyframes, costs, back)
+        return costs, back
     join = np.maximum if combine == "max" else np.add
     for k in range(3, max_keyframes + 1):
         # candidate[m, j, t] = combine(C_{k−1}(j), e(j, t)); inf where j ≥ t or j < k−2
@@ -284,7 +325,7 @@ def dp_keyframes_batch(
     if not np.isfinite(values).all():
         raise InputError("DP input holds NaN or Inf")
     errors = segment_error_table(values, distance, engine)
-    costs, back = dp_tables(errors, max(n_keyframes), combine)
+    costs, back = dp_tables(errors, max(n_keyframes), combine, engine)
     out = {}
     for n in n_keyframes:
         kf, cost = dp_backtrack(costs, back, n)
