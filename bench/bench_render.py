@@ -123,7 +123,9 @@ def main() -> int:
         ds = dancedata.open_store(store)
         seq = ds.seq_ids()[0]
 
+        cpu = time.process_time()
         result = render_sequence(store, seq, work / "render.mp4", RenderOptions())
+        render_cpu = time.process_time() - cpu
         video_s = result.duration_s
         print(f"frames: {result.frames} at {result.fps:g} fps = {video_s:.1f} s of video, "
               f"640x480, {result.codec} + AAC, cores: {os.cpu_count()}")  # fmt: skip
@@ -131,28 +133,31 @@ def main() -> int:
         renderer = SkeletonRenderer(ds, seq, RenderOptions())
         audio, _ = music_samples(ds, seq, renderer.start, renderer.stop, AUDIO_SR)
         still = renderer.frame(0).copy()
-        began = time.perf_counter()
+        began, cpu = time.perf_counter(), time.process_time()
         with VideoWriter(work / "encode.mp4", 640, 480, renderer.fps, audio) as writer:
             for _ in range(renderer.n_frames):
                 writer.write(still)
-        encode_s = time.perf_counter() - began
+        encode_s, encode_cpu = time.perf_counter() - began, time.process_time() - cpu
 
-        began = time.perf_counter()
+        began, cpu = time.perf_counter(), time.process_time()
         for _ in renderer.frames():
             pass
-        draw_s = time.perf_counter() - began
+        draw_s, draw_cpu = time.perf_counter() - began, time.process_time() - cpu
 
+        cpu = time.process_time()
         mpl_s = matplotlib_per_frame(renderer.panels[0].track, renderer.n_frames) * result.frames
+        mpl_cpu = (time.process_time() - cpu) / min(MPL_FRAMES, renderer.n_frames) * result.frames
 
     rows = [
-        ("dancedata render (whole command)", result.render_s),
-        ("  of which OpenCV drawing", draw_s),
-        ("encode only (same frames count + audio)", encode_s),
-        (f"matplotlib per frame, drawing only ({MPL_FRAMES} frames, extrapolated)", mpl_s),
+        ("dancedata render (whole command)", result.render_s, render_cpu),
+        ("  of which OpenCV drawing", draw_s, draw_cpu),
+        ("encode only (same frames count + audio)", encode_s, encode_cpu),
+        (f"matplotlib per frame, drawing only ({MPL_FRAMES} frames, extrap.)", mpl_s, mpl_cpu),
     ]
-    print(f"{'what':<68} {'seconds':>8} {'video s / s':>12}")
-    for name, seconds in rows:
-        print(f"{name:<68} {seconds:8.2f} {video_s / seconds:12.2f}")
+    print(f"load average at the end: {os.getloadavg()[0]:.1f}")
+    print(f"{'what':<62} {'wall s':>7} {'video s/s':>9} {'CPU s':>7}")
+    for name, seconds, cpu_s in rows:
+        print(f"{name:<62} {seconds:7.2f} {video_s / seconds:9.2f} {cpu_s:7.2f}")
     print(f"render vs matplotlib drawing: {mpl_s / result.render_s:.1f}x faster; "
           f"render vs encode only: {result.render_s / encode_s:.2f}x the time")  # fmt: skip
     ok = result.render_s < video_s

@@ -187,17 +187,18 @@ def music_timing(store: DanceStore, seq_id: str) -> MusicTiming:
     return MusicTiming(starts, stops, beats, per if starts.size else None)
 
 
-def _decode_music(path: str, sr: int) -> np.ndarray:
+def _decode_music(path: str, sr: int, seconds: float) -> np.ndarray:
+    """Mono float32 at ``sr`` Hz of the first ``seconds`` of the music (at most)."""
     from dancedata.io.audio import load_mono
 
     try:
-        return load_mono(path, sr)
+        return load_mono(path, sr, max_seconds=seconds)
     except InputError:
         from dancedata.io.av_audio import av_available, decode_audio_track
 
         if not av_available():
             raise
-        pcm, native = decode_audio_track(path)  # e.g. a video's own audio track
+        pcm, native = decode_audio_track(path, seconds)  # e.g. a video's own audio track
         mono = pcm.mean(axis=0)
         if native != sr:
             import librosa
@@ -230,7 +231,7 @@ def music_samples(
     offset = int(row.get("audio_offset") or 0)
     first = int(round((offset + start) / fps * sr))
     count = int(round((stop - start) / fps * sr))
-    y = _decode_music(str(path), sr)
+    y = _decode_music(str(path), sr, (offset + stop) / fps + 1.0)
     out = np.zeros(count, dtype=np.float32)
     piece = y[max(first, 0) : max(first, 0) + count]
     out[: piece.size] = piece

@@ -1,6 +1,7 @@
 """Encode frames and music into an MP4 with PyAV (its own FFmpeg: no system ffmpeg needed).
 
-Video: H.264 (``libx264``, preset ``veryfast``, CRF 20) in yuv420p, or MPEG-4 part 2 when the
+Video: H.264 (``libx264``, preset ``superfast``: about twice as fast as ``veryfast`` on
+line drawings at the same CRF 20) in yuv420p, or MPEG-4 part 2 when the
 PyAV build has no libx264; frame i has pts i in a time base of 1 / fps, so the stream's frame
 rate is the sequence's exactly (as a fraction: 30000/1001 for 29.97 fps). Audio: AAC, mono, at
 :data:`AUDIO_SR` Hz, interleaved with the video as it is written so that players start both
@@ -73,7 +74,7 @@ class VideoWriter:
         self.video.width, self.video.height, self.video.pix_fmt = width, height, "yuv420p"
         self.video.time_base = 1 / self.rate
         if self.codec == "libx264":
-            self.video.options = {"preset": "veryfast", "crf": "20"}
+            self.video.options = {"preset": "superfast", "crf": "20"}
         else:
             self.video.bit_rate = 2_000_000
         self.audio = None if audio is None else np.ascontiguousarray(audio, dtype=np.float32)
