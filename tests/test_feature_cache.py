@@ -204,6 +204,49 @@ def test_track_tempo_keys_only_the_families_that_use_it(tmp_path) -> None:
     assert set(stats["seconds"]) == {"decode", "fact"}
 
 
+def test_decoded_span_keys_the_cache_and_a_wrong_hash_is_never_saved(tmp_path) -> None:
+    """A track decoded only in part is another entry than the whole track (and the whole
+    track's key is the one it always was); bytes whose sha256 is not the given one are refused
+    before anything is computed or saved under that hash."""
+    import soundfile as sf
+
+    from dancedata.compute.audio_features import AudioFeatureConfig
+    from dancedata.errors import InputError
+    from dancedata.pipeline.audio_track import compute_track_features, family_cache_key
+    from dancedata.synth.music import synth_dance_music
+
+    cfg, settings = AudioFeatureConfig(), AudioSettings(stems="none")
+    whole = family_cache_key("fact", settings, cfg, "a" * 64, 120.0)
+    assert whole == family_cache_key("fact", settings, cfg, "a" * 64, 120.0, None)
+    assert family_cache_key("fact", settings, cfg, "a" * 64, 120.0, 40.0) != whole
+    assert family_cache_key("fact", settings, cfg, "a" * 64, 120.0, 41.0) != family_cache_key(
+        "fact", settings, cfg, "a" * 64, 120.0, 40.0
+    )
+
+    path = tmp_path / "song.wav"
+    sf.write(path, synth_dance_music(120.0, 6.0, sr=22050), 22050)
+    sha = hashlib.sha256(path.read_bytes()).hexdigest()
+    run = dict(
+        families=["fact"],
+        settings=settings,
+        cfg=cfg,
+        path=str(path),
+        bpm=120.0,
+        cache_dir=str(tmp_path / "cache"),
+    )
+    full, stats = compute_track_features(audio_sha256=sha, **run)
+    part, stats = compute_track_features(audio_sha256=sha, span_s=3.0, partial=True, **run)
+    assert stats["cache_misses"] == 1 and stats["decoded_s"] == pytest.approx(3.0)
+    assert part["onset_env"].shape[0] == 1 + (3 * cfg.sr) // cfg.hop_length
+    assert full["onset_env"].shape[0] > part["onset_env"].shape[0]
+    _, stats = compute_track_features(audio_sha256=sha, span_s=3.0, partial=True, **run)
+    assert stats["cache_hits"] == 1
+    entries = len(FeatureCache(tmp_path / "cache").entries())
+    with pytest.raises(InputError, match="changed since ingest"):
+        compute_track_features(audio_sha256="b" * 64, **run)
+    assert len(FeatureCache(tmp_path / "cache").entries()) == entries == 2
+
+
 # -- featurize with the cache --------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def raw(tmp_path_factory) -> Path:
