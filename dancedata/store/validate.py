@@ -206,7 +206,7 @@ def _check_manifest(reader: VersionReader, schema: dict[str, Any]) -> list[str]:
         manifest = reader.manifest
     except StoreError as exc:
         return [str(exc)]
-    where = reader.path / MANIFEST_FILE
+    where = f"{reader.path}/{MANIFEST_FILE}"  # a Path or a URL
     shape = manifest_type_problems(manifest)
     if shape:
         return [f"{where}: {p}" for p in shape]
