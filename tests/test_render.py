@@ -370,3 +370,32 @@ def test_png_still_needs_no_pyav_and_is_the_frame(aist_store: Path, tmp_path: Pa
     np.testing.assert_array_equal(image, renderer.frame(241))
     check_pixels(image[:, :, ::-1], renderer.pixels[0][241], renderer.panels[0].track.parents,
                  renderer.layout.drawing_area(0))
+
+
+def test_generated_fact_rows_and_smpl_pickles_match_the_stored_motion(
+    aist_store: Path, tmp_path: Path
+) -> None:
+    """FACT 225-d rows and EDGE/AIST++-style SMPL pickles of the stored motion give the SMPL
+    joints of the stored motion itself (same model)."""
+    import pickle
+
+    from dancedata.viz.skeleton_source import load_generated
+    from tests.test_motion_families import write_npz_model
+
+    model = write_npz_model(tmp_path / "smpl.npz")
+    ds = dancedata.open_store(aist_store)
+    seq = first_seq(aist_store)
+    truth = load_skeleton(ds, seq, source="smpl", smpl_model=model)
+    trans, rotmat = ds.motion(seq, "trans"), ds.motion(seq, "rotmat")
+    rows = np.concatenate([np.zeros((len(trans), 6)), trans, rotmat.reshape(len(trans), -1)], 1)
+    np.save(tmp_path / "fact.npy", rows[None].astype(np.float32))
+    scaling = 90.0
+    with (tmp_path / "edge.pkl").open("wb") as f:
+        pickle.dump({"smpl_poses": ds.motion(seq, "axis_angle").reshape(len(trans), 72),
+                     "smpl_trans": trans * scaling, "smpl_scaling": np.array([scaling])}, f)
+    for name in ("fact.npy", "edge.pkl"):
+        got = load_generated(tmp_path / name, seq, truth, smpl_model=model)
+        assert got.parents == truth.parents and got.fps == truth.fps
+        np.testing.assert_allclose(got.positions, truth.positions, atol=2e-4)
+    with pytest.raises(dancedata.errors.InputError, match="needs --smpl-model"):
+        load_generated(tmp_path / "fact.npy", seq, truth)
