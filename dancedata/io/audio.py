@@ -43,12 +43,25 @@ def audio_info(path: str | Path) -> AudioInfo:
         )
     except (RuntimeError, sf.LibsndfileError):
         pass
-    y, sr = _decode_with_librosa(path, sr=None, mono=False)
+    # Content libsndfile cannot read (e.g. AAC through audioread): its exact length needs a
+    # decode, bounded by the decode limit so a hostile file cannot take the memory.
+    from dancedata.io.audio_decode import DEFAULT_MAX_AUDIO_SECONDS
+
+    bound = DEFAULT_MAX_AUDIO_SECONDS + 1.0
+    y, sr = _decode_with_librosa(path, sr=None, mono=False, duration=bound)
+    if y.shape[-1] >= int(bound * sr) - 1:
+        raise InputError(
+            f"music lasts more than {DEFAULT_MAX_AUDIO_SECONDS:g} s in a format only the fallback "
+            "decoder reads (knowing its length means decoding it all): convert it to wav or flac",
+            path,
+        )
     channels = 1 if y.ndim == 1 else y.shape[0]
     return AudioInfo(sr=int(sr), n_samples=int(y.shape[-1]), channels=channels)
 
 
-def _decode_with_librosa(path: Path, sr: int | None, mono: bool) -> tuple[np.ndarray, int]:
+def _decode_with_librosa(
+    path: Path, sr: int | None, mono: bool, duration: float | None = None
+) -> tuple[np.ndarray, int]:
     import warnings
 
     import librosa
@@ -58,12 +71,13 @@ def _decode_with_librosa(path: Path, sr: int | None, mono: bool) -> tuple[np.nda
         # the outcome is reported below as one line instead.
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            y, out_sr = librosa.load(str(path), sr=sr, mono=mono)
+            y, out_sr = librosa.load(str(path), sr=sr, mono=mono, duration=duration)
     except Exception as exc:  # audioread/soundfile raise many unrelated types
         text = " ".join(str(exc).split())
         detail = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
         raise InputError(
-            f"cannot decode audio: not a readable wav/flac/ogg/mp3 file, or truncated ({detail})",
+            "cannot decode audio: the content is not a wav/flac/ogg/mp3 stream this decoder "
+            f"reads (whatever the extension), or it is truncated ({detail})",
             path,
         ) from None
     if y.size == 0:
