@@ -1,0 +1,49 @@
+"""Metrics of the experiment layer (EXPERIMENTS.md §4), each a pure function named by its
+convention and returning a :class:`MetricResult` (value + convention + sample size).
+
+- :mod:`.mse` — reconstruction MSE with space, wrapping and reduction (§4.1).
+- :mod:`.frechet` — the Fréchet distance as mint computes it, reference z-scoring (§4.2).
+- :mod:`.fid` — FID_k / FID_g on the AIST++ kinetic / geometric features (§4.2).
+- :mod:`.diversity` — mean pairwise feature distance (§4.3).
+- :mod:`.beats` — bas_mint, bas_bailando, ChoreoGraph's two MSDs, coverage / hit / accuracy
+  (§4.4).
+- :mod:`.fpd` — FPD and FMD (ChoreoGraph after Transflower; §4.5).
+"""
+
+from dancedata.experiments.metrics.beats import (
+    BeatCounts,
+    bas_bailando,
+    bas_mint,
+    bas_msd,
+    beat_counts,
+    beat_frames,
+    greedy_beat_matching,
+    motion_beats_choreograph,
+)
+from dancedata.experiments.metrics.diversity import diversity
+from dancedata.experiments.metrics.fid import fid, motion_feature_matrix
+from dancedata.experiments.metrics.fpd import fmd, fpd
+from dancedata.experiments.metrics.frechet import frechet_distance, reference_normalization
+from dancedata.experiments.metrics.mse import mse
+from dancedata.experiments.metrics.result import MetricResult, mean_over_units
+
+__all__ = [
+    "BeatCounts",
+    "MetricResult",
+    "bas_bailando",
+    "bas_mint",
+    "bas_msd",
+    "beat_counts",
+    "beat_frames",
+    "diversity",
+    "fid",
+    "fmd",
+    "fpd",
+    "frechet_distance",
+    "greedy_beat_matching",
+    "mean_over_units",
+    "motion_beats_choreograph",
+    "motion_feature_matrix",
+    "mse",
+    "reference_normalization",
+]

@@ -1,0 +1,150 @@
+"""Fréchet distance between two sets of feature vectors (EXPERIMENTS.md §4.2), as mint computes it.
+
+    FD = ‖μ1 − μ2‖² + Tr Σ1 + Tr Σ2 − 2 Tr (Σ1 Σ2)^{1/2}
+
+Steps and their named parameters, in the order of mint ``tools/calculate_scores.py``
+(``calculate_frechet_feature_distance`` → ``calculate_frechet_distance``, after pytorch-fid):
+
+1. ``normalize`` (default on): z-score *both* sets by the reference set's mean and population
+   std (ddof 0) plus ``std_eps`` = 1e−10. Only the reference's statistics are used.
+   ``drop_constant_ref_columns`` (default off, the parity setting) removes the columns whose
+   reference std is 0 first (they map to ±1e10·Δ otherwise); how many is reported.
+2. Moments: ``moments="covariance"`` (mean and ``np.cov``, ddof 1; mint, Bailando) or
+   ``"uncentred"`` (mean and XᵀX/N; Transflower's ``2moments``).
+3. ``scipy.linalg.sqrtm(Σ1 Σ2)``; when the result is not finite, retried as
+   ``sqrtm((Σ1 + εI)(Σ2 + εI))`` with ``eps`` (mint 1e−6; Bailando 1e−5; ``None`` = no retry,
+   as Transflower). A complex result keeps its real part; the largest imaginary part dropped is
+   reported (mint raises when a diagonal one exceeds 1e−3; here it is reported as
+   ``details["imag_over_tolerance"]`` instead, so one bad matrix does not stop a run).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+from scipy import linalg
+
+from dancedata.experiments.metrics.result import MetricResult
+
+__all__ = [
+    "frechet_distance",
+    "frechet_distance_from_moments",
+    "moments",
+    "reference_normalization",
+]
+
+Moments = Literal["covariance", "uncentred"]
+
+
+def _features(name: str, values: np.ndarray) -> np.ndarray:
+    array = np.asarray(values, dtype=np.float64)
+    if array.ndim != 2:
+        raise ValueError(f"{name} must be (samples, dims), got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} holds NaN or Inf")
+    return array
+
+
+def reference_normalization(
+    reference: np.ndarray, std_eps: float = 1e-10
+) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, std + std_eps) of the reference set, per column (std with ddof 0)."""
+    ref = _features("reference features", reference)
+    return ref.mean(axis=0), ref.std(axis=0) + std_eps
+
+
+def moments(features: np.ndarray, kind: Moments = "covariance") -> tuple[np.ndarray, np.ndarray]:
+    """(μ, Σ) of (n, d) features: ``np.cov`` (ddof 1) or the uncentred XᵀX / n."""
+    x = _features("features", features)
+    if kind == "covariance":
+        if x.shape[0] < 2:
+            raise ValueError("a covariance needs at least 2 samples")
+        return x.mean(axis=0), np.atleast_2d(np.cov(x, rowvar=False))
+    if kind == "uncentred":
+        if x.shape[0] < 1:
+            raise ValueError("moments of zero samples")
+        return x.mean(axis=0), x.T @ x / x.shape[0]
+    raise ValueError(f"moments must be 'covariance' or 'uncentred', got {kind!r}")
+
+
+def frechet_distance_from_moments(
+    mu1: np.ndarray,
+    sigma1: np.ndarray,
+    mu2: np.ndarray,
+    sigma2: np.ndarray,
+    eps: float | None = 1e-6,
+    imag_tolerance: float = 1e-3,
+) -> tuple[float, dict[str, Any]]:
+    """The Fréchet distance of two Gaussians, and diagnostics (eps retry, imaginary parts)."""
+    mu1, mu2 = np.atleast_1d(mu1), np.atleast_1d(mu2)
+    sigma1, sigma2 = np.atleast_2d(sigma1), np.atleast_2d(sigma2)
+    if mu1.shape != mu2.shape or sigma1.shape != sigma2.shape:
+        raise ValueError(
+            f"moment shapes differ: {mu1.shape}/{sigma1.shape} vs {mu2.shape}/{sigma2.shape}"
+        )
+    details: dict[str, Any] = {"eps_retry": False}
+    covmean = linalg.sqrtm(sigma1 @ sigma2)
+    if not np.all(np.isfinite(covmean)) and eps is not None:
+        offset = np.eye(sigma1.shape[0]) * eps
+        covmean = linalg.sqrtm((sigma1 + offset) @ (sigma2 + offset))
+        details["eps_retry"] = True
+    if np.iscomplexobj(covmean):
+        details["max_imag"] = float(np.max(np.abs(covmean.imag)))
+        details["imag_over_tolerance"] = bool(
+            np.max(np.abs(np.diagonal(covmean).imag)) > imag_tolerance
+        )
+        covmean = covmean.real
+    diff = mu1 - mu2
+    value = float(diff @ diff + np.trace(sigma1) + np.trace(sigma2) - 2.0 * np.trace(covmean))
+    return value, details
+
+
+def frechet_distance(
+    evaluated: np.ndarray,
+    reference: np.ndarray,
+    *,
+    name: str = "frechet_distance",
+    normalize: bool = True,
+    std_eps: float = 1e-10,
+    drop_constant_ref_columns: bool = False,
+    moments_kind: Moments = "covariance",
+    eps: float | None = 1e-6,
+    n_frames: int = 0,
+) -> MetricResult:
+    """Fréchet distance between (n_eval, d) and (n_ref, d) feature sets (module docstring).
+
+    Args:
+        evaluated: features of the evaluated (generated / reconstructed) units.
+        reference: features of the reference (ground-truth) units; the only set whose
+            statistics normalise.
+        name: the metric name to return (``fid_k``, ``fid_g``, ``fpd``...).
+        normalize, std_eps, drop_constant_ref_columns, moments_kind, eps: the convention.
+        n_frames: motion frames behind the evaluated features (recorded only).
+    """
+    x = _features("evaluated features", evaluated)
+    r = _features("reference features", reference)
+    if x.shape[1] != r.shape[1]:
+        raise ValueError(f"feature widths differ: {x.shape[1]} vs {r.shape[1]}")
+    details: dict[str, Any] = {"n_reference": int(r.shape[0])}
+    if drop_constant_ref_columns:
+        keep = r.std(axis=0) > 0
+        details["dropped_columns"] = int((~keep).sum())
+        x, r = x[:, keep], r[:, keep]
+    if normalize:
+        mean, std = reference_normalization(r, std_eps)
+        x, r = (x - mean) / std, (r - mean) / std
+    mu1, s1 = moments(x, moments_kind)
+    mu2, s2 = moments(r, moments_kind)
+    value, fd_details = frechet_distance_from_moments(mu1, s1, mu2, s2, eps)
+    convention = {
+        "normalize": "reference_zscore" if normalize else "none",
+        "std_eps": std_eps if normalize else None,
+        "drop_constant_ref_columns": drop_constant_ref_columns,
+        "moments": moments_kind,
+        "eps": eps,
+        "sqrtm": "scipy.linalg.sqrtm",
+    }
+    return MetricResult(
+        name, value, convention, int(x.shape[0]), int(n_frames), {**details, **fd_details}
+    )
