@@ -289,3 +289,11 @@ def test_legacy_store_reads_and_is_checked_against_checksums_json(legacy_store):
         dancedata.open_store(legacy_store).motion(seq, "trans")
     with pytest.raises(StoreError, match=r"motion/trans chunk \(0, 0\).*missing \(carried over"):
         segment(legacy_store, SegmentOptions())
+
+
+def test_info_shows_the_hash_of_the_newest_record(pristine):
+    from dancedata.store.summary import format_info, summarize
+
+    info = summarize(pristine)
+    assert info["checksums_sha256"] == _sha(pristine / "versions" / "v3" / CHECKSUMS_FILE)
+    assert f"record    checksums.json sha256 {info['checksums_sha256']}" in format_info(info)

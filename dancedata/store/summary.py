@@ -7,6 +7,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from dancedata.store.checksums import sha256_file
+from dancedata.store.integrity import CHECKSUMS_FILE
 from dancedata.store.layout import TABLE_FILES, StoreLayout
 from dancedata.store.reader import VersionReader
 
@@ -94,7 +96,18 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
     info["tables"] = {
         name: reader.table(name).num_rows for name in TABLE_FILES if reader.has_table(name)
     }
+    info["checksums_sha256"] = record_hash(reader)
     return info
+
+
+def record_hash(reader: VersionReader) -> str | None:
+    """sha256 of the version's checksums.json: the end of the chain of integrity records
+    (docs/STORE.md, 'What records the record'), to pin outside the store; None when the
+    version has no record (remote stores, versions from before checksums)."""
+    if reader.remote:
+        return None
+    path = Path(reader.path) / CHECKSUMS_FILE
+    return sha256_file(path) if path.is_file() else None
 
 
 def format_info(info: dict[str, Any]) -> str:
@@ -150,4 +163,6 @@ def format_info(info: dict[str, Any]) -> str:
     for name, spec in info["arrays"].items():
         lines.append(f"  {name:<28} {tuple(spec['shape'])} {spec['dtype']}")
     lines.append("tables    " + ", ".join(f"{k} ({v} rows)" for k, v in info["tables"].items()))
+    if info.get("checksums_sha256"):
+        lines.append(f"record    checksums.json sha256 {info['checksums_sha256']}")
     return "\n".join(lines)
