@@ -410,8 +410,8 @@ def _keyframes_locked(store: str | Path, options: KeyframesOptions, lock: Any) -
         "data_stages": data,
         "run_ids": run_ids,
         "sources": list(KEYFRAME_SOURCES),
-        "score": "curve value at peak/fill keyframes; direct segment error e(prev, k) at dp "
-        "keyframes k ≥ 1; NaN otherwise",
+        "score": "curve value at peak/fill keyframes; segment error e(prev, k) at dp "
+        "keyframes k ≥ 1 (from the DP's error table); NaN otherwise",
     }
     config = options.config(context)
     fp = fingerprint("keyframes", config, [str(v) for v in data.values()], __version__)
