@@ -726,6 +726,9 @@ def _parse_motion_fast(block: bytes, n_channels: int, n_frames: int) -> np.ndarr
         return np.zeros((0, n_channels)) if n_frames == 0 else None
     if n_frames == 0:
         return None
+    lines = text.count(b"\n") + 1  # rows, plus blank lines if any
+    if lines < n_frames or (lines > n_frames and b"\n\n" not in text):
+        return None  # the frame count is wrong: the strict path names the line
 
     import pyarrow as pa
     import pyarrow.csv as pacsv

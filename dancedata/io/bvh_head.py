@@ -62,11 +62,12 @@ MAX_HEADER_BYTES = 64 * 2**20
 FRAME_TIME_RANGE_S = (1e-4, 10.0)
 
 _FIRST_READ_BYTES = 2**20
-_LINE_CHUNK_BYTES = 2**16
+_CHUNK_BYTES = 2**16
 _T = TypeVar("_T")
 _WORD = re.compile(rb"\S{1,%d}" % (MAX_WORD_BYTES + 1))
 _NON_SPACE = re.compile(rb"\S")
 _MOTION_AT = re.compile(rb"(?i)[ \t]*MOTION[ \t]*\r?(?=\n|\Z)")
+_MOTION_LINE = re.compile(rb"(?im)^[ \t]*MOTION[ \t]*\r?(?=\n|\Z)")
 
 
 class NeedMore(Exception):
@@ -119,18 +120,23 @@ class Words:
     """Whitespace-separated words of the HIERARCHY, each with its 1-based line number, scanned
     lazily from the bytes. The stream ends at the first line holding only ``MOTION``
     (``motion_end`` is then the offset just after that word, ``last_line`` its line) or at the
-    end of the file (``motion_end`` None, ``last_line`` the file's last line). Each word is
-    decoded on its own (UTF-8, else Latin-1) and split again at Unicode whitespace."""
+    end of the file (``motion_end`` None, ``last_line`` the file's last line).
+
+    Whole lines are split a chunk (up to _CHUNK_BYTES) at a time, each chunk decoded as UTF-8,
+    else Latin-1, and split at Unicode whitespace; a line longer than a chunk is read one word
+    at a time, so a file on one line costs no more than the words the parser asks for."""
 
     def __init__(self, head: HeadBytes, start: int) -> None:
         self.head = head
         self.data = head.data
+        self.first = start  # where the file's text starts (after a byte order mark)
         self.scan = start  # bytes before this offset are consumed
         self.line = 1  # line of offset ``scan``
         self.line_start = start  # offset where that line begins
         self.items: list[tuple[str, int]] = []
         self.pos = 0
-        self.whole_line = False  # items hold all the words up to the end of their line
+        self.whole_line = False  # items hold all the words up to the end of their last line
+        self.motion: tuple[int, int] | None = None  # (end offset, line) of a MOTION line ahead
         self.done = False
         self.motion_end: int | None = None
         self.last_line = 1
@@ -142,55 +148,100 @@ class Words:
             self.line_start = self.data.rfind(b"\n", self.scan, offset) + 1
         self.scan = offset
 
+    def _finish(self, motion_end: int | None, line: int) -> bool:
+        self.done, self.motion_end, self.last_line = True, motion_end, line
+        return False
+
     def _fill(self) -> bool:
-        """Queue the words of the rest of the next line holding a word (of its next
-        _LINE_CHUNK_BYTES when it is longer: then only its next word)."""
+        """Queue the words of the next chunk of whole lines (or of a very long line's next
+        word); False when the words have ended."""
         head, data = self.head, self.data
         while self.pos >= len(self.items):
             if self.done:
                 return False
-            match = _WORD.search(data, self.scan, head.end)
-            if match is None:
+            if self.motion is not None:
+                return self._finish(*self.motion)
+            if self.scan >= head.end:
                 if not head.complete:
                     head.out_of_data(self.line)
-                self._advance_to(head.end)
-                self.done, self.last_line = True, self.line
-                return False
-            start = match.start()
-            self._advance_to(start)
-            if match.group().upper() == b"MOTION":
-                alone = _MOTION_AT.match(data, self.line_start, head.end)
-                if alone is not None:
-                    if alone.end() == head.end and not head.complete:
-                        head.out_of_data(self.line)
-                    self.done, self.last_line = True, self.line
-                    self.motion_end = alone.end()
-                    return False
-            limit = min(head.end, start + _LINE_CHUNK_BYTES)
-            newline = data.find(b"\n", start, limit)
-            whole_line = newline >= 0 or (head.complete and limit == head.end)
-            if whole_line:
-                stop = head.end if newline < 0 else newline
-            elif limit == head.end:
-                head.out_of_data(self.line)  # the line goes on past the bytes read
+                return self._finish(None, self.line)
+            limit = min(head.end, self.scan + _CHUNK_BYTES)
+            if limit == head.end and head.complete:
+                stop = limit
             else:
-                stop = match.end()  # a very long line: one word at a time
-                if stop == head.end and not head.complete:
-                    head.out_of_data(self.line)
-            piece = data[start:stop]
-            if len(piece) > MAX_WORD_BYTES:
-                longest = max(piece.split(), key=len)
-                if len(longest) > MAX_WORD_BYTES:
-                    raise InputError(
-                        f"line {self.line}: a word of more than {MAX_WORD_BYTES:,} bytes "
-                        f"({shown(decode(longest[:40]))}...): not a BVH hierarchy",
-                        head.path,
-                    )
-            self.scan = stop
-            self.items = [(text, self.line) for text in decode(piece).split()]
-            self.pos = 0
-            self.whole_line = whole_line
+                stop = data.rfind(b"\n", self.scan, limit) + 1
+                if stop == 0:
+                    if limit == head.end:
+                        head.out_of_data(self.line)  # the line goes on past the bytes read
+                    self._one_word()
+                    continue
+            self._queue_lines(stop)
         return True
+
+    def _queue_lines(self, stop: int) -> None:
+        """Queue the words of data[scan:stop] (whole lines), up to a MOTION line."""
+        data, start = self.data, self.scan
+        first_line = self.line
+        if start == self.first or data[start - 1 : start] == b"\n":
+            motion = _MOTION_AT.match(data, start, stop)
+            motion = motion or _MOTION_LINE.search(data, start, stop)
+        else:  # the chunk starts inside a long line: a MOTION there is not alone on it
+            motion = _MOTION_LINE.search(data, start, stop)
+        if motion is not None:  # it starts at the start of its line
+            self._advance_to(motion.start())
+            self.motion = (motion.end(), self.line)
+            stop = motion.start()
+        else:
+            self._advance_to(stop)
+        text = decode(data[start:stop])
+        items = []
+        for number, line in enumerate(text.split("\n"), start=first_line):
+            words = line.split()
+            if len(line) > MAX_WORD_BYTES:
+                self._check_word_length(max(words, key=len, default=""), number)
+            items += [(word, number) for word in words]
+        self.items, self.pos, self.whole_line = items, 0, True
+
+    def _one_word(self) -> None:
+        """Queue the next word of a line longer than a chunk (nothing when that line ends in
+        blanks: then only move to the next line)."""
+        head, data = self.head, self.data
+        match = _WORD.search(data, self.scan, head.end)
+        if match is None:
+            if not head.complete:
+                head.out_of_data(self.line)
+            self._advance_to(head.end)
+            self.items, self.pos = [], 0
+            return
+        newline = data.rfind(b"\n", self.scan, match.start())
+        if newline >= 0:
+            self._advance_to(newline + 1)
+            self.items, self.pos = [], 0
+            return
+        if match.end() == head.end and not head.complete:
+            head.out_of_data(self.line)
+        self._advance_to(match.start())
+        word = match.group()
+        self._check_word_length(word, self.line)
+        if word.upper() == b"MOTION":
+            alone = _MOTION_AT.match(data, self.line_start, head.end)
+            if alone is not None:
+                if alone.end() == head.end and not head.complete:
+                    head.out_of_data(self.line)
+                self.motion = (alone.end(), self.line)
+                self.items, self.pos = [], 0
+                return
+        self.scan = match.end()
+        self.items = [(text, self.line) for text in decode(word).split()]
+        self.pos, self.whole_line = 0, False
+
+    def _check_word_length(self, word: bytes | str, line: int) -> None:
+        if len(word) > MAX_WORD_BYTES:
+            raise InputError(
+                f"line {line}: a word of more than {MAX_WORD_BYTES:,} bytes "
+                f"({word[:40]!r}...): not a BVH hierarchy",
+                self.head.path,
+            )
 
     def peek(self) -> tuple[str, int] | None:
         if self.pos < len(self.items):
