@@ -73,6 +73,7 @@ def decode(path: Path) -> dict:
     with av.open(str(path)) as container:
         video = container.streams.video[0]
         rate = video.average_rate
+        durations = {s.type: float(s.duration * s.time_base) for s in container.streams}
         frames = [f.to_ndarray(format="rgb24") for f in container.decode(video)]
     audio, sr = None, None
     with av.open(str(path)) as container:
@@ -81,7 +82,7 @@ def decode(path: Path) -> dict:
             sr = stream.codec_context.sample_rate
             chunks = [f.to_ndarray().mean(axis=0) for f in container.decode(stream)]
             audio = np.concatenate(chunks)
-    return {"frames": frames, "rate": rate, "audio": audio, "sr": sr}
+    return {"frames": frames, "rate": rate, "audio": audio, "sr": sr, "durations": durations}
 
 
 def segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -162,8 +163,11 @@ def test_aist_render_frames_fps_audio_and_pixels(aist_store: Path, tmp_path: Pat
     got = decode(out)
     assert len(got["frames"]) == row["n_frames"] == 640
     assert got["rate"] == 60 and got["frames"][0].shape == (480, 640, 3)
-    # Audio lasts as long as the motion, within one frame.
+    # Audio lasts as long as the motion, within one frame: decoded samples, and the streams'
+    # durations as the container tells a player (AAC priming trimmed by the edit list).
     assert abs(got["audio"].size / got["sr"] - row["n_frames"] / row["fps"]) <= 1 / row["fps"]
+    assert got["durations"]["video"] == pytest.approx(row["n_frames"] / row["fps"], abs=1e-3)
+    assert got["durations"]["audio"] == pytest.approx(got["durations"]["video"], abs=1e-3)
     # ... and is the music from its start: correlation with the wav at zero lag.
     music = music_at(ds, seq, 0, row["n_frames"], got["sr"])
     n = min(music.size, got["audio"].size)
