@@ -420,3 +420,26 @@ def test_measures_too_short_for_an_n_are_skipped_and_reported(small_store: Path)
     assert result.skipped and all("too few for N = 10000" in s["error"] for s in result.skipped)
     with pytest.raises(InputError, match="every measure was left out"):
         keyframes(small_store, KeyframesOptions(strategies=["dp"], n_keyframes=[10_000]))
+
+
+def test_non_finite_motion_or_curves_are_one_line_errors(small_store: Path, tmp_path) -> None:
+    import shutil
+
+    import zarr
+
+    from dancedata.pipeline.keyframes import KeyframesOptions, keyframes
+    from dancedata.store.reader import VersionReader
+
+    store = tmp_path / "damaged"
+    shutil.copytree(small_store, store)  # a real copy: the fixture's files stay as they are
+    reader = VersionReader(store)
+    seq = reader.table("sequences").to_pylist()[1]
+    data = zarr.open_group(str(reader.path / "data.zarr"), mode="r+")
+    euler = data["motion/euler"]
+    euler[seq["frame_start"] + 7, 3, 1] = np.nan
+    onset = data["audio/onset_env"]
+    onset[5] = np.inf
+    with pytest.raises(InputError, match=f"dp: motion of {seq['seq_id']} .* frame 7"):
+        keyframes(store, KeyframesOptions(strategies=["dp"], n_keyframes=[3]))
+    with pytest.raises(InputError, match="peaks:onset: the curve of .* holds NaN or Inf"):
+        keyframes(store, KeyframesOptions(strategies=["onset"], n_keyframes=[3]))

@@ -175,8 +175,13 @@ class CurveSource:
             seq_id = seq["seq_id"]
             if store.audio_frames(seq_id) == 0:
                 continue
-            curve = _sequence_curve(store, seq_id, strategy, params)
-            pieces.append(np.asarray(curve, dtype=np.float64))
+            curve = np.asarray(_sequence_curve(store, seq_id, strategy, params), np.float64)
+            if not np.isfinite(curve).all():
+                first = int(np.flatnonzero(~np.isfinite(curve))[0])
+                raise InputError(
+                    f"{strategy}: the curve of {seq_id} holds NaN or Inf (first at frame {first})"
+                )
+            pieces.append(curve)
             if use_detect:
                 peak_pieces.append(np.asarray(store.audio(seq_id, "onset_peaks")) > 0)
             position += curve.shape[0]
@@ -235,6 +240,15 @@ class EulerRows:
                  params: KeyframeParams, order: Any) -> None:  # fmt: skip
         self.trans = np.asarray(reader.array("motion/trans")[...], dtype=np.float64)
         euler = np.asarray(reader.array("motion/euler")[...])
+        bad = ~np.isfinite(euler).reshape(euler.shape[0], -1).all(axis=1)
+        bad |= ~np.isfinite(self.trans).all(axis=1)
+        if bad.any():
+            frame = int(np.flatnonzero(bad)[0])
+            seq = next(s for s in sequences if s["frame_start"] <= frame < s["frame_stop"])
+            raise InputError(
+                f"dp: motion of {seq['seq_id']} holds NaN or Inf "
+                f"(first at frame {frame - int(seq['frame_start'])})"
+            )
         if params.euler_branch == "continuous":
             euler = _continuous_euler(euler, sequences, order)
         self.euler = euler.reshape(euler.shape[0], -1)
