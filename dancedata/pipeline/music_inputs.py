@@ -19,9 +19,12 @@ over its sequences. featurize decodes the first ``(N - 1) × hop + n_fft / 2 + 1
 ``cfg.sr``) plus :data:`DECODE_MARGIN_S` seconds, capped at the track's length: for a track no
 longer than that (every AIST++ track, any music cut to its dance) the whole file, and the numbers
 are those of the whole track. A longer track (a ten-hour file under a one-minute dance) gives
-features for the span only; features that normalise or search over the whole signal (beats,
-onset peaks, NMFD, the repetition-based stems) then see the span, which the feature cache key
-and the music table (``decoded_s``) record. A track no sequence uses is decoded whole.
+features for the span only. Local features (onset envelope, MFCC, mel, STFT) on the frames the
+sequences use equal those of the whole file (tests/test_audio_limits.py); features that
+normalise, estimate or search over the whole signal (chroma: its tuning estimate; beats: the
+global tempo; onset peaks: max-normalised; NMFD; the repetition-based stems) see the span, which
+the feature cache key and the music table (``decoded_s``) record. A track no sequence uses is
+decoded whole.
 
 Limit: a span longer than ``max_audio_seconds`` (default :data:`DEFAULT_MAX_AUDIO_SECONDS`,
 ``--max-audio-seconds``; 0 = no limit) is refused before any decoding: the default families
@@ -92,11 +95,17 @@ def check_music_inputs(
     for row in music:
         row = dict(row)
         track = _verify(row, accept_changed)
-        span_s, partial = decode_span_s(needed.get(row["music_id"]), cfg, float(row["duration_s"]))
+        reach = needed.get(row["music_id"])
+        span_s, partial = decode_span_s(reach, cfg, float(row["duration_s"]))
         if max_audio_seconds and span_s > max_audio_seconds:
-            use = "" if needed.get(row["music_id"]) is None else " (the motions need that much)"
+            if reach is None:
+                why = "the whole track: no sequence uses it"
+            elif partial:
+                why = f"its sequences reach {reach / cfg.fps:.1f} s, plus {DECODE_MARGIN_S:g} s"
+            else:
+                why = f"the whole track: its sequences end within {DECODE_MARGIN_S:g} s of it"
             raise InputError(
-                f"music {row['music_id']} would decode {span_s:.0f} s of audio{use}, over the "
+                f"music {row['music_id']} would decode {span_s:.0f} s of audio ({why}), over the "
                 f"{max_audio_seconds:g} s limit; pass {LIMIT_OPTION} {math.ceil(span_s)} (or 0 for "
                 "no limit) to allow it",
                 row["path"],
