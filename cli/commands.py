@@ -3,6 +3,8 @@
 from dancedata.cli import (  # noqa: F401
     apps,
     cache,
+    evaluate,
+    experiment,
     export_bvh,
     ingest,
     ingest_bvh,

@@ -20,6 +20,7 @@ Steps and their named parameters, in the order of mint ``tools/calculate_scores.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any, Literal
 
 import numpy as np
@@ -84,11 +85,15 @@ def frechet_distance_from_moments(
             f"moment shapes differ: {mu1.shape}/{sigma1.shape} vs {mu2.shape}/{sigma2.shape}"
         )
     details: dict[str, Any] = {"eps_retry": False}
-    covmean = linalg.sqrtm(sigma1 @ sigma2)
-    if not np.all(np.isfinite(covmean)) and eps is not None:
-        offset = np.eye(sigma1.shape[0]) * eps
-        covmean = linalg.sqrtm((sigma1 + offset) @ (sigma2 + offset))
-        details["eps_retry"] = True
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", linalg.LinAlgWarning)
+        covmean = linalg.sqrtm(sigma1 @ sigma2)
+        if not np.all(np.isfinite(covmean)) and eps is not None:
+            offset = np.eye(sigma1.shape[0]) * eps
+            covmean = linalg.sqrtm((sigma1 + offset) @ (sigma2 + offset))
+            details["eps_retry"] = True
+    if caught:  # e.g. "Matrix is singular": reported with the value, not printed
+        details["sqrtm_warning"] = str(caught[-1].message)[:200]
     if np.iscomplexobj(covmean):
         details["max_imag"] = float(np.max(np.abs(covmean.imag)))
         details["imag_over_tolerance"] = bool(

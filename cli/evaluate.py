@@ -1,0 +1,147 @@
+"""``dancedata evaluate``: score generated motion against a store's ground truth on a split."""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Annotated
+
+import typer
+from dancedata.cli.common import Json, Quiet, VersionOpt, setup, split_csv
+from dancedata.cli.main import app
+
+
+@app.command("evaluate")
+def evaluate_command(
+    store: Annotated[str, typer.Argument(help="Store directory (ground truth).")],
+    generated: Annotated[
+        str,
+        typer.Option(
+            "--generated",
+            "-g",
+            help="Folder of generated motion, one <seq_id>.npy|.npz|.pkl per sequence (FACT "
+            "225-d rows; smpl_poses + smpl_trans pickles; (F, 24, 3) joint positions), or "
+            "another dancedata store.",
+        ),
+    ],
+    split: Annotated[str, typer.Option(help="Split to score (train, val, test).")] = "test",
+    scheme: Annotated[str, typer.Option(help="Split scheme.")] = "crossmodal",
+    exclude_genres: Annotated[
+        str | None, typer.Option(help="Genres to leave out, comma-separated (e.g. gJB).")
+    ] = None,
+    smpl_model: Annotated[
+        str | None,
+        typer.Option(
+            help="SMPL model file: joint positions by forward kinematics (default "
+            "$DANCEDATA_SMPL_MODEL). Without it positions are read from the files / store."
+        ),
+    ] = None,
+    out: Annotated[
+        str | None,
+        typer.Option(
+            help="Folder for results.json and results.parquet (default results/evaluate-<run id>)."
+        ),
+    ] = None,
+    row_key: Annotated[str, typer.Option(help="Row key recorded with every result.")] = (
+        "generated"
+    ),
+    mse_space: Annotated[str, typer.Option(help="MSE space: euler75, euler72 or rotmat.")] = (
+        "euler75"
+    ),
+    mse_wrap: Annotated[
+        bool, typer.Option(help="Wrap Euler angle differences to (−π, π] in the MSE.")
+    ] = False,
+    mse_reduce: Annotated[
+        str, typer.Option(help="MSE reduction: pooled, measure_mean or sequence_mean.")
+    ] = "pooled",
+    kinetic_mode: Annotated[
+        str, typer.Option(help="Kinetic features: parity (AIST++ code) or corrected.")
+    ] = "parity",
+    normalize: Annotated[
+        bool, typer.Option(help="z-score FID / diversity features by the ground truth's stats.")
+    ] = True,
+    drop_constant_ref_columns: Annotated[
+        bool, typer.Option(help="Drop feature columns constant in the ground truth (FID).")
+    ] = False,
+    fid_eps: Annotated[
+        float, typer.Option(help="ε added to covariances when sqrtm is not finite.")
+    ] = 1e-6,
+    bas_sigma: Annotated[float, typer.Option(help="σ (frames) of bas_mint / bas_bailando.")] = 3.0,
+    beat_tol: Annotated[
+        int, typer.Option(help="Beat coverage / hit / accuracy tolerance (frames).")
+    ] = 12,
+    beat_detector: Annotated[
+        str, typer.Option(help="Motion beats for coverage / hit / accuracy: mint or bailando.")
+    ] = "mint",
+    msd_fps: Annotated[float, typer.Option(help="Frame rate of ChoreoGraph's beat MSD.")] = 20.0,
+    fpd_parity: Annotated[
+        str, typer.Option(help="FPD/FMD convention: spec (covariance, sliding) or transflower.")
+    ] = "spec",
+    fpd_aggregate: Annotated[
+        str, typer.Option(help="FPD/FMD over music pieces: per_piece_mean or pooled.")
+    ] = "per_piece_mean",
+    skip_frames: Annotated[
+        int, typer.Option(min=0, help="Frames to drop at the start of both (mint: 120).")
+    ] = 0,
+    strict: Annotated[
+        bool,
+        typer.Option(help="Exit 1 (after writing the record) if any sequence was not scored."),
+    ] = False,
+    version: VersionOpt = None,
+    generated_version: Annotated[
+        str | None, typer.Option(help="Version of a generated store (default: latest).")
+    ] = None,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Score generated motion against the store's ground truth on a split: MSE, FID_k, FID_g,
+    diversity, the beat scores (mint, Bailando, ChoreoGraph MSD, coverage / hit / accuracy) and
+    FPD / FMD, each with its convention. Prints a table and writes results.json and
+    results.parquet. Sequences that cannot be scored are listed with their reason (stderr and
+    the record). Exit 0 when the record is written; 1 on a bad store, split or folder, when no
+    sequence can be scored, or with --strict when any sequence was not scored."""
+    setup(quiet)
+    from pathlib import Path
+
+    from dancedata.experiments.evaluate import EvaluateParams
+    from dancedata.pipeline.evaluate import EvaluateOptions
+    from dancedata.pipeline.evaluate import evaluate as run
+
+    params = EvaluateParams(
+        mse_space=mse_space,
+        mse_wrap=mse_wrap,
+        mse_reduce=mse_reduce,
+        kinetic_mode=kinetic_mode,
+        normalize=normalize,
+        drop_constant_ref_columns=drop_constant_ref_columns,
+        fid_eps=fid_eps,
+        bas_sigma=bas_sigma,
+        beat_tol=beat_tol,
+        beat_detector=beat_detector,
+        msd_fps=msd_fps,
+        fpd_parity=fpd_parity,
+        fpd_aggregate=fpd_aggregate,
+        skip_frames=skip_frames,
+    )
+    options = EvaluateOptions(
+        generated=Path(generated),
+        split=split,
+        scheme=scheme,
+        exclude_genres=split_csv(exclude_genres) or [],
+        smpl_model=smpl_model or os.environ.get("DANCEDATA_SMPL_MODEL") or None,
+        out=Path(out) if out else None,
+        row_key=row_key,
+        version=version,
+        generated_version=generated_version,
+        params=params,
+    )
+    summary = run(store, options)
+    if as_json:
+        typer.echo(json.dumps({"command": "evaluate", **summary.as_dict()}, indent=2, default=str))
+    else:
+        typer.echo(summary.message("evaluate"))
+    for item in summary.unscored_sequences:
+        for reason, metrics in item["reasons"].items():
+            typer.echo(f"  not scored {item['seq_id']} ({', '.join(metrics)}): {reason}", err=True)
+    if strict and summary.unscored_sequences:
+        raise typer.Exit(1)

@@ -1,0 +1,431 @@
+"""Score generated motion against ground truth, sequence by sequence and as sets (pure).
+
+Input: one :class:`EvalSequence` per sequence of the split, already cropped to the frames both
+sides share, holding whatever each side offers (joint positions, axis-angle, MSE rows, music
+beats). Output: one :class:`~dancedata.experiments.metrics.MetricResult` per metric, plus, for
+every metric, the sequences it could not use and why: a sequence is never silently left out of a
+mean. Every [CHOICE] of EXPERIMENTS.md §4 that affects a number is a field of
+:class:`EvaluateParams` and is recorded in each result's convention.
+
+Metrics and what they need (both sides):
+
+* ``mse``: MSE rows (rotations); unit = the sequence's shared frames.
+* ``fid_k``, ``fid_g``, ``div_k``, ``div_g``, ``div_k_gt``, ``div_g_gt``: SMPL-24 positions;
+  one feature vector per sequence (``fid_unit = "sequence"``), reference = the ground truth of
+  the same sequences (``fid_reference = "paired_gt"``); at least 2 sequences.
+* ``bas_mint``, ``bas_bailando``, ``bas_msd_motion2music``, ``bas_msd_music2motion``,
+  ``beat_coverage``, ``beat_hit_rate``, ``beat_accuracy``: generated positions + the music
+  beats; per-sequence values averaged over sequences.
+* ``fpd``, ``fmd``: axis-angle poses; per music piece, then the mean over pieces
+  (``fpd_aggregate = "per_piece_mean"``) or one pooled distance.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dancedata.experiments.metrics import (
+    MetricResult,
+    bas_bailando,
+    bas_mint,
+    bas_msd,
+    beat_counts,
+    diversity,
+    fid,
+    fmd,
+    fpd,
+    mean_over_units,
+    motion_beats_choreograph,
+    motion_feature_matrix,
+    mse,
+)
+from dancedata.experiments.metrics.beats import decimate_beats
+
+__all__ = ["METRICS", "EvalSequence", "EvaluateParams", "Evaluation", "evaluate_sequences"]
+
+METRICS = (
+    "mse",
+    "fid_k",
+    "fid_g",
+    "div_k",
+    "div_g",
+    "div_k_gt",
+    "div_g_gt",
+    "bas_mint",
+    "bas_bailando",
+    "bas_msd_motion2music",
+    "bas_msd_music2motion",
+    "beat_coverage",
+    "beat_hit_rate",
+    "beat_accuracy",
+    "fpd",
+    "fmd",
+)
+_FEATURE_METRICS = ("fid_k", "fid_g", "div_k", "div_g", "div_k_gt", "div_g_gt")
+_BEAT_METRICS = METRICS[7:14]
+
+
+@dataclass(frozen=True)
+class EvaluateParams:
+    """Every convention choice of the evaluation (EXPERIMENTS.md §4, §9); recorded per result."""
+
+    fps: float = 60.0
+    mse_space: str = "euler75"
+    mse_wrap: bool = False
+    mse_reduce: str = "pooled"
+    euler_order: str = "XYZ"
+    fid_unit: str = "sequence"
+    fid_reference: str = "paired_gt"
+    kinetic_mode: str = "parity"
+    geometric_frame_time_s: float = 1.0 / 120.0
+    normalize: bool = True
+    drop_constant_ref_columns: bool = False
+    fid_eps: float = 1e-6
+    bas_sigma: float = 3.0
+    mint_order: int = 10
+    bailando_smoothing_sigma: float = 5.0
+    msd_fps: float = 20.0
+    beat_tol: int = 12
+    beat_detector: str = "mint"
+    fpd_parity: str = "spec"
+    fpd_aggregate: str = "per_piece_mean"
+    fpd_frame_step: int = 3
+    skip_frames: int = 0
+    length: str = "common_min"
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class EvalSequence:
+    """One sequence, ground truth and generated, cropped to the same frames.
+
+    Attributes:
+        seq_id, music_id: identifiers (music_id groups FPD/FMD per piece).
+        n_frames: frames used (after ``skip_frames``, the shorter of the two).
+        gt_positions, gen_positions: (F, 24, 3) SMPL joint positions, m, y up; or None.
+        gt_rows, gen_rows: (F, D) rows in the MSE space; or None.
+        gt_axis_angle, gen_axis_angle: (F, 24, 3) axis-angle, rad; or None.
+        music_beats: music-beat frame indices in the used frames' time base; or None.
+        missing: why a side lacks something (e.g. ``{"positions": "no --smpl-model"}``).
+    """
+
+    seq_id: str
+    music_id: str | None
+    n_frames: int
+    gt_positions: np.ndarray | None = None
+    gen_positions: np.ndarray | None = None
+    gt_rows: np.ndarray | None = None
+    gen_rows: np.ndarray | None = None
+    gt_axis_angle: np.ndarray | None = None
+    gen_axis_angle: np.ndarray | None = None
+    music_beats: np.ndarray | None = None
+    missing: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass
+class Evaluation:
+    """Results and, per metric, the sequences left out with their reasons."""
+
+    results: list[MetricResult]
+    unscored: dict[str, list[dict[str, str]]]  # metric -> [{seq_id, reason}]
+    skipped_metrics: dict[str, str]  # metric -> reason no value exists
+
+
+def _needs(
+    seqs: Sequence[EvalSequence],
+    metric_names: Sequence[str],
+    what: str,
+    check: Callable[[EvalSequence], bool],
+    unscored: dict[str, list[dict[str, str]]],
+) -> list[EvalSequence]:
+    usable = []
+    for s in seqs:
+        if check(s):
+            usable.append(s)
+            continue
+        reason = s.missing.get(what, f"no {what}")
+        for name in metric_names:
+            unscored[name].append({"seq_id": s.seq_id, "reason": reason})
+    return usable
+
+
+def _with_unscored(result: MetricResult, params: EvaluateParams) -> MetricResult:
+    convention = {**result.convention, "skip_frames": params.skip_frames, "length": params.length}
+    return MetricResult(
+        result.name, result.value, convention, result.n_units, result.n_frames, result.details
+    )
+
+
+def _feature_metrics(seqs: list[EvalSequence], p: EvaluateParams, out: list[MetricResult]) -> None:
+    gen = [s.gen_positions for s in seqs]
+    gt = [s.gt_positions for s in seqs]
+    frames = sum(s.n_frames for s in seqs)
+    unit = {"unit": p.fid_unit, "reference": p.fid_reference}
+    for kind, suffix in (("kinetic", "k"), ("geometric", "g")):
+        result = fid(
+            gen,  # type: ignore[arg-type]
+            gt,  # type: ignore[arg-type]
+            kind,  # type: ignore[arg-type]
+            fps=p.fps,
+            kinetic_mode=p.kinetic_mode,  # type: ignore[arg-type]
+            geometric_frame_time_s=p.geometric_frame_time_s,
+            normalize=p.normalize,
+            drop_constant_ref_columns=p.drop_constant_ref_columns,
+            eps=p.fid_eps,
+        )
+        out.append(
+            MetricResult(
+                result.name,
+                result.value,
+                {**result.convention, **unit},
+                result.n_units,
+                result.n_frames,
+                result.details,
+            )
+        )
+        feats = {
+            "fps": p.fps,
+            "kinetic_mode": p.kinetic_mode,
+            "geometric_frame_time_s": p.geometric_frame_time_s,
+        }
+        f_gen = motion_feature_matrix(gen, kind, **feats)  # type: ignore[arg-type]
+        f_gt = motion_feature_matrix(gt, kind, **feats)  # type: ignore[arg-type]
+        if p.drop_constant_ref_columns:
+            keep = f_gt.std(axis=0) > 0
+            f_gen, f_gt = f_gen[:, keep], f_gt[:, keep]
+        ref = f_gt if p.normalize else None
+        conv = {"features": kind, **unit, "drop_constant_ref_columns": p.drop_constant_ref_columns}
+        for name, values in ((f"div_{suffix}", f_gen), (f"div_{suffix}_gt", f_gt)):
+            r = diversity(values, ref, name=name, n_frames=frames)
+            out.append(MetricResult(name, r.value, {**r.convention, **conv}, r.n_units, r.n_frames))
+
+
+def _beat_metrics(
+    seqs: list[EvalSequence],
+    p: EvaluateParams,
+    out: list[MetricResult],
+    unscored: dict[str, list[dict[str, str]]],
+) -> None:
+    step = p.fps / p.msd_fps
+    if abs(step - round(step)) > 1e-9 or round(step) < 1:
+        raise ValueError(f"msd_fps {p.msd_fps} must divide fps {p.fps}")
+    step = round(step)
+    per: dict[str, list[tuple[str, float]]] = defaultdict(list)
+    for s in seqs:
+        pos, beats = s.gen_positions, s.music_beats
+        assert pos is not None and beats is not None
+        per["bas_mint"].append(
+            (s.seq_id, bas_mint(pos, beats, sigma=p.bas_sigma, order=p.mint_order))
+        )
+        per["bas_bailando"].append(
+            (
+                s.seq_id,
+                bas_bailando(
+                    pos, beats, sigma=p.bas_sigma, smoothing_sigma=p.bailando_smoothing_sigma
+                ),
+            )
+        )
+        low = pos[::step]
+        motion = motion_beats_choreograph(low, p.msd_fps)
+        music = decimate_beats(beats[beats < pos.shape[0]], step)
+        m2m, a2m = bas_msd(motion, music)
+        per["bas_msd_motion2music"].append((s.seq_id, m2m))
+        per["bas_msd_music2motion"].append((s.seq_id, a2m))
+        counts = beat_counts(
+            pos,
+            beats,
+            tol=p.beat_tol,
+            detector=p.beat_detector,  # type: ignore[arg-type]
+            order=p.mint_order,
+        )
+        per["beat_coverage"].append((s.seq_id, counts.coverage))
+        per["beat_hit_rate"].append((s.seq_id, counts.hit_rate))
+        per["beat_accuracy"].append((s.seq_id, counts.accuracy))
+    conventions: dict[str, dict[str, Any]] = {
+        "bas_mint": {
+            "convention": "mint calculate_beat_scores.py",
+            "direction": "motion2music",
+            "sigma": p.bas_sigma,
+            "order": p.mint_order,
+            "fps": p.fps,
+        },
+        "bas_bailando": {
+            "convention": "Bailando beat_align_score.py",
+            "direction": "music2motion",
+            "sigma": p.bas_sigma,
+            "smoothing_sigma": p.bailando_smoothing_sigma,
+            "fps": p.fps,
+        },
+        "bas_msd_motion2music": {
+            "convention": "ChoreoGraph mean squared distance",
+            "units": "frames^2",
+            "fps": p.msd_fps,
+            "beat_map": "floor(i/step+0.5)",
+        },
+        "bas_msd_music2motion": {
+            "convention": "ChoreoGraph mean squared distance",
+            "units": "frames^2",
+            "fps": p.msd_fps,
+            "beat_map": "floor(i/step+0.5)",
+        },
+    }
+    counted = {
+        "tol_frames": p.beat_tol,
+        "matching": "greedy_one_to_one_time_order",
+        "detector": p.beat_detector,
+        "order": p.mint_order,
+        "fps": p.fps,
+    }
+    for name in ("beat_coverage", "beat_hit_rate", "beat_accuracy"):
+        conventions[name] = dict(counted)
+    frames = {s.seq_id: s.n_frames for s in seqs}
+    for name in _BEAT_METRICS:
+        values = []
+        for seq_id, value in per[name]:
+            if math.isnan(value):
+                unscored[name].append({"seq_id": seq_id, "reason": "undefined: no beats to match"})
+            else:
+                values.append((seq_id, value))
+        if not values:
+            continue
+        out.append(
+            mean_over_units(
+                name, [v for _, v in values], conventions[name], sum(frames[k] for k, _ in values)
+            )
+        )
+
+
+def _fpd_metrics(seqs: list[EvalSequence], p: EvaluateParams, out: list[MetricResult]) -> None:
+    pieces: dict[str, list[EvalSequence]] = defaultdict(list)
+    if p.fpd_aggregate == "pooled":
+        pieces["all"] = list(seqs)
+    elif p.fpd_aggregate == "per_piece_mean":
+        for s in seqs:
+            pieces[s.music_id or s.seq_id].append(s)
+    else:
+        raise ValueError(f"fpd_aggregate must be per_piece_mean or pooled: {p.fpd_aggregate!r}")
+    for name, function in (("fpd", fpd), ("fmd", fmd)):
+        per_piece = [
+            function(
+                [s.gen_axis_angle for s in group],  # type: ignore[misc]
+                [s.gt_axis_angle for s in group],  # type: ignore[misc]
+                frame_step=p.fpd_frame_step,
+                parity=p.fpd_parity,  # type: ignore[arg-type]
+            )
+            for group in pieces.values()
+        ]
+        convention = {
+            **per_piece[0].convention,
+            "aggregate": p.fpd_aggregate,
+            "poses": "smpl24_axis_angle",
+            "root_translation": False,
+        }
+        out.append(
+            MetricResult(
+                name,
+                float(np.mean([r.value for r in per_piece])),
+                convention,
+                len(seqs),
+                sum(s.n_frames for s in seqs),
+                {
+                    "n_pieces": len(per_piece),
+                    "per_piece": {k: r.value for k, r in zip(pieces, per_piece, strict=True)},
+                },
+            )
+        )
+
+
+def evaluate_sequences(
+    seqs: Sequence[EvalSequence],
+    params: EvaluateParams,
+    unreadable: Sequence[dict[str, str]] = (),
+) -> Evaluation:
+    """Every metric of :data:`METRICS` over ``seqs``; ``unreadable`` ({seq_id, reason}) are
+    sequences with no usable generated motion at all, listed as unscored under every metric."""
+    unscored: dict[str, list[dict[str, str]]] = {name: [] for name in METRICS}
+    for item in unreadable:
+        for name in METRICS:
+            unscored[name].append(dict(item))
+    skipped: dict[str, str] = {}
+    out: list[MetricResult] = []
+
+    rows = _needs(
+        seqs,
+        ["mse"],
+        "rotations",
+        lambda s: s.gt_rows is not None and s.gen_rows is not None,
+        unscored,
+    )
+    if rows:
+        out.append(
+            mse(
+                [s.gt_rows for s in rows],
+                [s.gen_rows for s in rows],  # type: ignore[misc]
+                space=p_space(params),
+                wrap=params.mse_wrap,  # type: ignore[arg-type]
+                reduce=params.mse_reduce,
+                groups=[s.seq_id for s in rows],
+            )  # type: ignore[arg-type]
+        )
+    else:
+        skipped["mse"] = "no sequence with rotations on both sides"
+
+    positions = _needs(
+        seqs,
+        _FEATURE_METRICS,
+        "positions",
+        lambda s: s.gt_positions is not None and s.gen_positions is not None,
+        unscored,
+    )
+    if len(positions) >= 2:
+        _feature_metrics(positions, params, out)
+    else:
+        for name in _FEATURE_METRICS:
+            skipped[name] = f"needs joint positions of at least 2 sequences, have {len(positions)}"
+
+    beats = _needs(
+        [s for s in seqs if s.gen_positions is not None],
+        _BEAT_METRICS,
+        "music_beats",
+        lambda s: s.music_beats is not None,
+        unscored,
+    )
+    for s in seqs:
+        if s.gen_positions is None:
+            for name in _BEAT_METRICS:
+                reason = s.missing.get("positions", "no positions")
+                unscored[name].append({"seq_id": s.seq_id, "reason": reason})
+    if beats:
+        _beat_metrics(beats, params, out, unscored)
+    for name in _BEAT_METRICS:
+        if not any(r.name == name for r in out):
+            skipped.setdefault(name, "no sequence with generated positions and music beats")
+
+    poses = _needs(
+        seqs,
+        ["fpd", "fmd"],
+        "rotations",
+        lambda s: s.gt_axis_angle is not None and s.gen_axis_angle is not None,
+        unscored,
+    )
+    if poses:
+        _fpd_metrics(poses, params, out)
+    else:
+        skipped["fpd"] = skipped["fmd"] = "no sequence with rotations on both sides"
+
+    out.sort(key=lambda r: METRICS.index(r.name))
+    results = [_with_unscored(r, params) for r in out]
+    return Evaluation(results, unscored, skipped)
+
+
+def p_space(params: EvaluateParams) -> str:
+    """The MSE space (``euler75``, ``euler72`` or ``rotmat``)."""
+    return params.mse_space

@@ -1,0 +1,482 @@
+"""``dancedata evaluate``: score generated motion against a store's ground truth on a split.
+
+Reads the store version (never writes to it), one generated file per sequence of the split (or
+the same sequences of another dancedata store), puts both sides into the metrics' spaces, runs
+:func:`dancedata.experiments.evaluate.evaluate_sequences` and writes a results record:
+``results.json`` (everything) and ``results.parquet`` (EXPERIMENTS.md §5.5 long format, one row
+per metric), each written under a temporary name and renamed into ``out``.
+
+Assumptions, recorded in the record: generated motion runs at the store's frame rate, frame i
+beside ground-truth frame i, in SMPL's frame (metres, y up). Ground-truth positions come from
+SMPL forward kinematics with ``smpl_model`` (else the store's ``motion/positions``); generated
+positions from forward kinematics of its rotations with ``smpl_model`` (else the positions the
+file holds). Music beats are the store's ``audio/beats`` (librosa ``beat_track``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dancedata._version import __version__
+from dancedata.errors import DancedataError, InputError, StoreError
+from dancedata.experiments.evaluate import (
+    METRICS,
+    EvalSequence,
+    EvaluateParams,
+    Evaluation,
+    evaluate_sequences,
+)
+from dancedata.experiments.evaluate_inputs import (
+    axis_angle_euler,
+    euler75_rows,
+    fact225_rows,
+    fact_rows_to_smpl,
+)
+from dancedata.experiments.metrics.beats import beat_frames
+from dancedata.io.generated_motion import (
+    GENERATED_SUFFIXES,
+    find_generated_file,
+    read_generated_motion,
+)
+from dancedata.loader import DanceStore, open_store
+from dancedata.store.checksums import canonical_json, sha256_file
+
+__all__ = ["EvaluateOptions", "EvaluateSummary", "evaluate"]
+
+
+@dataclass
+class EvaluateOptions:
+    """What to score and how (every metric choice is in ``params``)."""
+
+    generated: Path
+    split: str = "test"
+    scheme: str = "crossmodal"
+    exclude_genres: list[str] = field(default_factory=list)
+    smpl_model: str | None = None
+    out: Path | None = None
+    row_key: str = "generated"
+    version: str | None = None
+    generated_version: str | None = None
+    params: EvaluateParams = field(default_factory=EvaluateParams)
+
+
+@dataclass
+class EvaluateSummary:
+    """What ``evaluate`` did, for the CLI: the record and where it went."""
+
+    record: dict[str, Any]
+    out: Path
+    skipped: list[dict[str, str]] = field(default_factory=list)
+
+    @property
+    def unscored_sequences(self) -> list[dict[str, str]]:
+        return self.record["unscored_sequences"]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"out": str(self.out), **self.record}
+
+    def table(self) -> str:
+        """The results as a fixed-width text table."""
+        lines = [f"{'metric':<22}{'value':>14}{'units':>7}{'frames':>9}  not scored"]
+        for row in self.record["results"]:
+            value = "nan" if row["value"] is None else f"{row['value']:.6g}"
+            lines.append(
+                f"{row['metric']:<22}{value:>14}{row['n_units']:>7}{row['n_frames']:>9}"
+                f"  {len(row['unscored'])}"
+            )
+        for name, reason in self.record["skipped_metrics"].items():
+            lines.append(f"{name:<22}{'—':>14}{0:>7}{0:>9}  ({reason})")
+        return "\n".join(lines)
+
+    def message(self, command: str) -> str:
+        head = (
+            f"{command}: {self.record['store_version']} {self.record['split']}, "
+            f"{self.record['n_scored']} of {self.record['n_sequences']} sequences scored; "
+            f"record in {self.out}"
+        )
+        return head + "\n" + self.table()
+
+
+# ------------------------------------------------------------------------- reading each side
+
+
+def _gt_side(
+    store: DanceStore, seq_id: str, model: Any, order: str
+) -> tuple[dict[str, np.ndarray | None], dict[str, str]]:
+    missing: dict[str, str] = {}
+    aa = np.asarray(store.motion(seq_id, "axis_angle"), dtype=np.float64)
+    trans = np.asarray(store.motion(seq_id, "trans"), dtype=np.float64)
+    names = set(store.array_names())
+    if "motion/euler" in names:
+        euler = np.asarray(store.motion(seq_id, "euler"), dtype=np.float64)
+    else:
+        euler = axis_angle_euler(aa, order)
+    positions = None
+    if model is not None:
+        from dancedata.smpl_model import smpl_joint_positions
+
+        positions = smpl_joint_positions(model, aa, trans)
+    elif "motion/positions" in names:
+        positions = np.asarray(store.motion(seq_id, "positions"), dtype=np.float64)
+    else:
+        missing["positions"] = (
+            "ground truth has no joint positions (give --smpl-model, or featurize "
+            "--motion-families positions)"
+        )
+    return {"axis_angle": aa, "trans": trans, "euler": euler, "positions": positions}, missing
+
+
+def _gen_from_store(gen: DanceStore, seq_id: str, model: Any) -> dict[str, Any]:
+    if seq_id not in gen.seq_ids():
+        raise InputError(f"no sequence {seq_id} in the generated store", gen.path)
+    aa = np.asarray(gen.motion(seq_id, "axis_angle"), dtype=np.float64)
+    trans = np.asarray(gen.motion(seq_id, "trans"), dtype=np.float64)
+    positions = None
+    if model is None and "motion/positions" in gen.array_names():
+        positions = np.asarray(gen.motion(seq_id, "positions"), dtype=np.float64)
+    return {
+        "layout": "store",
+        "axis_angle": aa,
+        "trans": trans,
+        "positions": positions,
+        "source": f"{gen.path}::{seq_id}",
+    }
+
+
+def _gen_from_file(path: Path) -> dict[str, Any]:
+    motion = read_generated_motion(path)
+    aa = trans = None
+    if motion.fact_rows is not None:
+        aa, trans = fact_rows_to_smpl(motion.fact_rows)
+    elif motion.axis_angle is not None:
+        aa, trans = motion.axis_angle, motion.trans
+    return {
+        "layout": motion.layout,
+        "axis_angle": aa,
+        "trans": trans,
+        "positions": motion.positions,
+        "source": str(path),
+    }
+
+
+def _gen_positions(gen: dict[str, Any], model: Any) -> tuple[np.ndarray | None, str | None]:
+    if model is not None and gen["axis_angle"] is not None:
+        from dancedata.smpl_model import smpl_joint_positions
+
+        return smpl_joint_positions(model, gen["axis_angle"], gen["trans"]), None
+    positions = gen["positions"]
+    if positions is None:
+        return None, "generated motion holds rotations only: give --smpl-model for positions"
+    if positions.shape[1] != 24:
+        return None, f"generated positions have {positions.shape[1]} joints, metrics need SMPL-24"
+    return positions, None
+
+
+def _pair(
+    seq_id: str,
+    music_id: str | None,
+    gt: dict[str, Any],
+    gt_missing: dict[str, str],
+    gen: dict[str, Any],
+    model: Any,
+    beats: np.ndarray | None,
+    beats_missing: str | None,
+    params: EvaluateParams,
+) -> tuple[EvalSequence, dict[str, Any]]:
+    """Both sides cropped to [skip, min(F_gt, F_gen)); raises InputError when too short."""
+    missing = dict(gt_missing)
+    gen_pos, why = _gen_positions(gen, model)
+    if why and "positions" not in missing:
+        missing["positions"] = why
+    gen_frames = len(gen["axis_angle"]) if gen["axis_angle"] is not None else len(gen_pos)
+    gt_frames = len(gt["axis_angle"])
+    skip = params.skip_frames
+    stop = min(gt_frames, gen_frames)
+    if stop - skip < 3:
+        raise InputError(
+            f"{stop - skip} frames to compare after skipping {skip} (ground truth {gt_frames}, "
+            f"generated {gen_frames}; need 3)",
+            gen["source"],
+        )
+    cut = slice(skip, stop)
+    gen_rows = gt_rows = gen_aa = None
+    if gen["axis_angle"] is not None:
+        gen_aa = gen["axis_angle"][cut]
+        gen_euler = axis_angle_euler(gen_aa, params.euler_order)
+        if params.mse_space == "rotmat":
+            gen_rows, gt_rows = (
+                fact225_rows(gen_aa, gen["trans"][cut]),
+                fact225_rows(gt["axis_angle"][cut], gt["trans"][cut]),
+            )
+        else:
+            gen_rows = euler75_rows(gen_euler, gen["trans"][cut])
+            gt_rows = euler75_rows(gt["euler"][cut], gt["trans"][cut])
+    else:
+        missing["rotations"] = "generated motion holds joint positions only (no rotations)"
+    music = None
+    if beats is not None:
+        music = beats[(beats >= skip) & (beats < stop)] - skip
+    elif beats_missing:
+        missing["music_beats"] = beats_missing
+    seq = EvalSequence(
+        seq_id=seq_id,
+        music_id=music_id,
+        n_frames=stop - skip,
+        gt_positions=None if gt["positions"] is None else gt["positions"][cut],
+        gen_positions=None if gen_pos is None else gen_pos[cut],
+        gt_rows=gt_rows,
+        gen_rows=gen_rows,
+        gt_axis_angle=gt["axis_angle"][cut],
+        gen_axis_angle=gen_aa,
+        music_beats=music,
+        missing=missing,
+    )
+    info = {
+        "seq_id": seq_id,
+        "layout": gen["layout"],
+        "source": gen["source"],
+        "gt_frames": gt_frames,
+        "generated_frames": gen_frames,
+        "used_frames": stop - skip,
+    }
+    return seq, info
+
+
+def _beats(store: DanceStore, seq_id: str) -> tuple[np.ndarray | None, str | None]:
+    if "audio/beats" not in store.array_names():
+        return None, "the store has no audio/beats (run featurize with the fact family)"
+    if store.audio_frames(seq_id) == 0:
+        return None, "the sequence has no music"
+    return beat_frames(store.audio(seq_id, "beats")), None
+
+
+# ---------------------------------------------------------------------------------- record
+
+
+def _write_record(out: Path, record: dict[str, Any], rows: list[dict[str, Any]]) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    out.mkdir(parents=True, exist_ok=True)
+    schema = pa.schema(
+        [
+            ("run_id", pa.string()),
+            ("row_key", pa.string()),
+            ("n_keyframes", pa.int16()),
+            ("metric", pa.string()),
+            ("value", pa.float64()),
+            ("n_units", pa.int32()),
+            ("n_frames", pa.int32()),
+            ("split", pa.string()),
+            ("genres_excluded", pa.string()),
+            ("variant", pa.string()),
+            ("n_unscored", pa.int32()),
+            ("unscored", pa.string()),
+            ("store_version", pa.string()),
+            ("dancedata_version", pa.string()),
+            ("created_at", pa.string()),
+        ]
+    )
+    table = pa.Table.from_pylist(rows, schema=schema)
+    tag = f".tmp-{os.getpid()}"
+    pq_tmp, json_tmp = out / f"results.parquet{tag}", out / f"results.json{tag}"
+    try:
+        pq.write_table(table, pq_tmp)
+        json_tmp.write_text(json.dumps(record, indent=2, default=str) + "\n")
+        os.replace(pq_tmp, out / "results.parquet")
+        os.replace(json_tmp, out / "results.json")
+    finally:
+        for tmp in (pq_tmp, json_tmp):
+            tmp.unlink(missing_ok=True)
+
+
+def _long_rows(record: dict[str, Any], evaluation: Evaluation) -> list[dict[str, Any]]:
+    base = {
+        "run_id": record["run_id"],
+        "row_key": record["row_key"],
+        "n_keyframes": None,
+        "split": record["split"],
+        "genres_excluded": ",".join(record["genres_excluded"]),
+        "store_version": record["store_version"],
+        "dancedata_version": record["dancedata_version"],
+        "created_at": record["created_at"],
+    }
+    rows = []
+    for result in evaluation.results:
+        left_out = evaluation.unscored.get(result.name, [])
+        rows.append(
+            {
+                **base,
+                "metric": result.name,
+                "value": float(result.value),
+                "n_units": result.n_units,
+                "n_frames": result.n_frames,
+                "variant": canonical_json(result.convention),
+                "n_unscored": len(left_out),
+                "unscored": canonical_json(left_out),
+            }
+        )
+    return rows
+
+
+# ------------------------------------------------------------------------------------- run
+
+
+def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummary:
+    """Score ``options.generated`` against the store's ground truth on the split; write the
+    record; return it. Raises InputError / StoreError for a bad store, split or PATH, and when
+    no sequence at all can be scored."""
+    params = options.params
+    store = open_store(store_path, options.version)
+    seq_ids = store.seq_ids(split=options.split, scheme=options.scheme)
+    genres = set(options.exclude_genres)
+    seq_ids = [s for s in seq_ids if store.sequence(s)["genre"] not in genres]
+    if not seq_ids:
+        raise StoreError(
+            f"split {options.scheme}:{options.split} has no sequences"
+            + (f" outside {sorted(genres)}" if genres else ""),
+            store.path,
+        )
+    fps = {float(store.sequence(s)["fps"]) for s in seq_ids}
+    if fps != {params.fps}:
+        raise StoreError(f"the split's frame rates {sorted(fps)} differ from fps {params.fps}")
+    euler_order = params.euler_order
+    if "motion/euler" in store.array_names():
+        euler_order = str(dict(store.zarr("motion/euler").attrs).get("order", euler_order))
+    params = EvaluateParams(**{**params.as_dict(), "euler_order": euler_order})
+
+    generated = Path(options.generated)
+    gen_store = None
+    if (generated / "store.json").is_file():
+        gen_store = open_store(generated, options.generated_version)
+    elif not generated.is_dir():
+        raise InputError("--generated must be a folder of <seq_id> files or a store", generated)
+
+    model = None
+    model_id = None
+    if options.smpl_model:
+        from dancedata.smpl_model import cached_smpl_model
+
+        model = cached_smpl_model(options.smpl_model)
+        model_id = {
+            "file": Path(options.smpl_model).name,
+            "sha256": sha256_file(options.smpl_model),
+        }
+
+    seqs: list[EvalSequence] = []
+    unreadable: list[dict[str, str]] = []
+    sequences_info: list[dict[str, Any]] = []
+    inputs: list[str] = []
+    for seq_id in seq_ids:
+        row = store.sequence(seq_id)
+        try:
+            if gen_store is not None:
+                gen = _gen_from_store(gen_store, seq_id, model)
+            else:
+                file = find_generated_file(generated, seq_id)
+                if file is None:
+                    raise InputError(
+                        f"no generated file {seq_id}{{{','.join(GENERATED_SUFFIXES)}}}", generated
+                    )
+                inputs.append(sha256_file(file))
+                gen = _gen_from_file(file)
+            gt, gt_missing = _gt_side(store, seq_id, model, euler_order)
+            beats, beats_missing = _beats(store, seq_id)
+            seq, info = _pair(
+                seq_id,
+                row.get("music_id"),
+                gt,
+                gt_missing,
+                gen,
+                model,
+                beats,
+                beats_missing,
+                params,
+            )
+        except (DancedataError, ValueError) as exc:
+            unreadable.append({"seq_id": seq_id, "reason": str(exc)})
+            continue
+        seqs.append(seq)
+        sequences_info.append(info)
+    if not seqs:
+        reasons = "; ".join(f"{u['seq_id']}: {u['reason']}" for u in unreadable[:3])
+        raise InputError(f"no sequence of the split could be scored ({reasons})", generated)
+
+    evaluation = evaluate_sequences(seqs, params, unreadable)
+    config = {
+        "params": params.as_dict(),
+        "split": options.split,
+        "scheme": options.scheme,
+        "exclude_genres": sorted(genres),
+        "row_key": options.row_key,
+        "smpl_model": model_id,
+        "assumptions": {
+            "generated_fps": "store fps",
+            "alignment": "frame i = frame i",
+            "up_axis": "y",
+            "units": "m, rad",
+        },
+    }
+    gen_id = (
+        {"store": str(gen_store.path), "version": gen_store.version}
+        if gen_store is not None
+        else {"folder": str(generated), "files_sha256": sorted(inputs)}
+    )
+    run_id = sha256_text(
+        canonical_json(
+            {
+                "config": config,
+                "store": store.manifest.get("fingerprint"),
+                "store_version": store.version,
+                "generated": gen_id,
+                "dancedata": __version__,
+            }
+        )
+    )
+    created = datetime.now(UTC).isoformat(timespec="seconds")
+    unscored_by_seq: dict[str, dict[str, Any]] = {}
+    for metric, items in evaluation.unscored.items():
+        for item in items:
+            entry = unscored_by_seq.setdefault(
+                item["seq_id"], {"seq_id": item["seq_id"], "reasons": {}}
+            )
+            entry["reasons"].setdefault(item["reason"], []).append(metric)
+    record = {
+        "run_id": run_id,
+        "row_key": options.row_key,
+        "store": str(store.path),
+        "store_version": store.version,
+        "store_fingerprint": store.manifest.get("fingerprint"),
+        "split": f"{options.scheme}:{options.split}",
+        "genres_excluded": sorted(genres),
+        "generated": {**gen_id, "layouts": sorted({i["layout"] for i in sequences_info})},
+        "dancedata_version": __version__,
+        "created_at": created,
+        "config": config,
+        "n_sequences": len(seq_ids),
+        "n_scored": len(seqs),
+        "metrics": list(METRICS),
+        "results": [
+            {**r.as_dict(), "unscored": evaluation.unscored.get(r.name, [])}
+            for r in evaluation.results
+        ],
+        "skipped_metrics": evaluation.skipped_metrics,
+        "unscored_sequences": list(unscored_by_seq.values()),
+        "sequences": sequences_info,
+    }
+    out = options.out or Path("results") / f"evaluate-{run_id[:12]}"
+    _write_record(Path(out), record, _long_rows(record, evaluation))
+    return EvaluateSummary(record, Path(out))
+
+
+def sha256_text(text: str) -> str:
+    import hashlib
+
+    return hashlib.sha256(text.encode()).hexdigest()
