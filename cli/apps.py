@@ -16,3 +16,9 @@ export_app = typer.Typer(
 app.add_typer(synth_app, name="synth")
 app.add_typer(ingest_app, name="ingest")
 app.add_typer(export_app, name="export")
+experiment_app = typer.Typer(
+    help="Run experiment configs (keyframes × N × in-betweens × metrics) and render the seed "
+    "tables from their results.",
+    no_args_is_help=True,
+)
+app.add_typer(experiment_app, name="experiment")

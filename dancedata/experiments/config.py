@@ -1,0 +1,298 @@
+"""Experiment configs (EXPERIMENTS.md §6): a TOML file → a validated, fully defaulted config.
+
+A config names a matrix of rows (keyframe strategy + in-betweener, the row keys of spec §5.1,
+e.g. ``even+linear_slerp``) × keyframe counts N × metrics, the split to evaluate on, and every
+[CHOICE] parameter of spec §2–4. Every key, defaults filled in, enters the run fingerprint
+(:func:`run_fingerprint`), so two results with the same ``run_id`` come from the same settings.
+
+File layout (every table and key optional except ``rows`` or ``[matrix]``)::
+
+    id = "thesis-table-4.3"
+    tables = ["4.3"]                      # seed tables this config regenerates
+    store = "data/stores/aist"            # the CLI's --store overrides
+    n_keyframes = [3, 5, 9]
+    rows = ["even+linear_slerp", "dp+bezier_oracle"]
+    [matrix]                              # alternative to rows: every keyframes × inbetween
+    keyframes = ["even", "onset"] ; inbetween = ["linear_slerp", "bezier_oracle"]
+    [split]    scheme = "crossmodal" ; eval = ["test", "val"] ; train = "train"
+               exclude_genres = ["gJB"]
+    [keyframes] n_counts_edges, G, peak_source, fill, stem_weights, nmfd_weights, normalize,
+               audio_scope, dp_distance, combine, euler_branch
+    [inbetween] bezier_group, bezier_param, bezier_trans, bezier_solver
+    [metrics]  names = ["mse", "fid_g", "fid_k"] ; mse_space ; mse_wrap ; mse_reduce ;
+               fid_unit ; fid_reference ; kinetic_mode ; geometric_frame_time ; normalize ;
+               drop_constant_ref_columns ; smpl_model
+    [generated] "even+transformer_motion@9" = "path/to/outputs"   # class M rows
+
+Unknown keys are refused (a typo would otherwise silently run the default).
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dancedata.errors import InputError
+from dancedata.experiments.keyframes import KeyframeParams, canonical_strategy
+
+# In-betweeners of spec §3 by row-key name; transformer:* rows need a trained model (class M).
+INBETWEENERS: tuple[str, ...] = ("linear_slerp", "bezier_oracle", "bezier_train_mean")
+TRANSFORMER_PREFIX = "transformer_"
+METRICS: tuple[str, ...] = ("mse", "fid_g", "fid_k")
+GENRES_9: tuple[str, ...] = ("gBR", "gHO", "gJS", "gKR", "gLH", "gLO", "gMH", "gPO", "gWA")
+
+DEFAULTS: dict[str, Any] = {
+    "id": "experiment",
+    "tables": [],
+    "store": None,
+    "n_keyframes": [3, 5, 9],
+    "rows": [],
+    "split": {
+        "scheme": "crossmodal",
+        "eval": ["test", "val"],
+        "train": "train",
+        "exclude_genres": ["gJB"],
+    },
+    "keyframes": {
+        "n_counts_edges": True,
+        "G": 6,
+        "peak_source": "local_max",
+        "fill": "adjacent_max_sum",
+        "stem_weights": {"drums": 1.0, "bass": 1.0, "vocals": 1.0, "other": 1.0},
+        "nmfd_weights": {"kick": 1.0, "snare": 1.0, "hihat": 1.0},
+        "normalize": False,
+        "audio_scope": "track",
+        "dp_distance": "vertical",
+        "combine": "max",
+        "euler_branch": "principal",
+    },
+    "inbetween": {
+        "bezier_group": "channel_slot",
+        "bezier_param": "absolute",
+        "bezier_trans": "bezier",
+        "bezier_solver": "closed_form",
+    },
+    "metrics": {
+        "names": ["mse"],
+        "mse_space": "euler75",
+        "mse_wrap": False,
+        "mse_reduce": "pooled",
+        "fid_unit": "sequence",
+        "fid_reference": "paired_gt",
+        "kinetic_mode": "parity",
+        "geometric_frame_time": 1.0 / 120.0,
+        "normalize": True,
+        "drop_constant_ref_columns": False,
+        "smpl_model": "$DANCEDATA_SMPL_MODEL",
+    },
+    "generated": {},
+}
+_CHOICES = {
+    ("inbetween", "bezier_group"): ("channel_slot", "channel"),
+    ("inbetween", "bezier_param"): ("absolute", "chord_relative"),
+    ("inbetween", "bezier_trans"): ("bezier", "linear"),
+    ("inbetween", "bezier_solver"): ("closed_form", "lm"),
+    ("metrics", "mse_space"): ("euler75", "euler72"),
+    ("metrics", "mse_reduce"): ("pooled", "measure_mean", "sequence_mean"),
+    ("metrics", "fid_unit"): ("sequence", "measure"),
+    ("metrics", "fid_reference"): ("paired_gt",),
+    ("metrics", "kinetic_mode"): ("parity", "corrected"),
+}
+
+
+@dataclass(frozen=True)
+class RowKey:
+    """One (keyframe strategy, in-betweener) pair, e.g. ``dp+bezier_oracle``."""
+
+    key: str
+    strategy: str  # canonical keyframe strategy: even, peaks:onset, ..., dp
+    inbetween: str  # linear_slerp, bezier_oracle, bezier_train_mean or transformer_*
+
+    @property
+    def learned(self) -> bool:
+        """Class M: the in-betweens come from a trained model's outputs."""
+        return self.inbetween.startswith(TRANSFORMER_PREFIX)
+
+
+def parse_row_key(key: str) -> RowKey:
+    """``"onset+linear_slerp"`` → RowKey; one clear line for an unknown part."""
+    kf, sep, ib = key.partition("+")
+    if not sep:
+        raise InputError(
+            f"row key {key!r} must read <keyframes>+<inbetween>, e.g. even+linear_slerp"
+        )
+    strategy = canonical_strategy(kf)
+    if ib not in INBETWEENERS and not (ib.startswith(TRANSFORMER_PREFIX) and len(ib) > 12):
+        known = ", ".join([*INBETWEENERS, "transformer_<variant>"])
+        raise InputError(f"unknown in-betweener {ib!r} in row key {key!r}; known: {known}")
+    return RowKey(key, strategy, ib)
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """A validated config: ``data`` is the full dict (defaults filled) that is fingerprinted."""
+
+    data: dict[str, Any]
+    path: Path | None = None
+
+    @property
+    def id(self) -> str:
+        return str(self.data["id"])
+
+    @property
+    def rows(self) -> list[RowKey]:
+        return [parse_row_key(k) for k in self.data["rows"]]
+
+    @property
+    def n_keyframes(self) -> list[int]:
+        return list(self.data["n_keyframes"])
+
+    @property
+    def metrics(self) -> list[str]:
+        return list(self.data["metrics"]["names"])
+
+    @property
+    def split(self) -> dict[str, Any]:
+        return self.data["split"]
+
+    @property
+    def split_label(self) -> str:
+        """``crossmodal:test+val`` (spec §5.5 ``split`` column)."""
+        return f"{self.split['scheme']}:{'+'.join(self.split['eval'])}"
+
+    def keyframe_params(self) -> KeyframeParams:
+        k = self.data["keyframes"]
+        return KeyframeParams(
+            n_counts_edges=k["n_counts_edges"],
+            guard=k["G"],
+            peak_source=k["peak_source"],
+            fill=k["fill"],
+            stem_weights=dict(k["stem_weights"]),
+            nmfd_weights=dict(k["nmfd_weights"]),
+            normalize=k["normalize"],
+            audio_scope=k["audio_scope"],
+            dp_distance=k["dp_distance"],
+            combine=k["combine"],
+            euler_branch=k["euler_branch"],
+        )
+
+    def smpl_model_path(self) -> Path | None:
+        """The SMPL model file the FID metrics use, ``$VAR`` expanded; None when unset."""
+        value = self.data["metrics"]["smpl_model"]
+        if not value:
+            return None
+        expanded = os.path.expandvars(str(value))
+        if not expanded or expanded.startswith("$"):
+            return None
+        return Path(expanded).expanduser()
+
+
+def _merge(defaults: dict[str, Any], given: dict[str, Any], where: str, source: str) -> dict:
+    out = copy.deepcopy(defaults)
+    for key, value in given.items():
+        if key not in defaults:
+            known = ", ".join(sorted(defaults))
+            raise InputError(f"unknown key {where}{key!r} (known: {known})", source)
+        if isinstance(defaults[key], dict) and key not in ("stem_weights", "nmfd_weights",
+                                                         "generated"):  # fmt: skip
+            if not isinstance(value, dict):
+                raise InputError(f"{where}{key} must be a table", source)
+            out[key] = _merge(defaults[key], value, f"{where}{key}.", source)
+        else:
+            out[key] = value
+    return out
+
+
+def _as_list(value: Any) -> list[Any]:
+    return list(value) if isinstance(value, list | tuple) else [value]
+
+
+def build_config(raw: dict[str, Any], source: str = "<config>",
+                 path: Path | None = None) -> ExperimentConfig:  # fmt: skip
+    """Validate ``raw`` (a parsed TOML document), fill the defaults, expand ``[matrix]``."""
+    raw = dict(raw)
+    matrix = raw.pop("matrix", None)
+    data = _merge(DEFAULTS, raw, "", source)
+    rows = [str(r) for r in _as_list(data["rows"])]
+    if matrix is not None:
+        unknown = sorted(set(matrix) - {"keyframes", "inbetween"})
+        if unknown:
+            raise InputError(
+                f"unknown key(s) matrix.{unknown}: use keyframes and inbetween", source
+            )
+        for kf in _as_list(matrix.get("keyframes", ["even"])):
+            for ib in _as_list(matrix.get("inbetween", ["linear_slerp"])):
+                rows.append(f"{kf}+{ib}")
+    if not rows:
+        raise InputError("the config names no rows (give rows = [...] or a [matrix])", source)
+    data["rows"] = list(dict.fromkeys(rows))
+    for key in data["rows"]:
+        parse_row_key(key)
+    try:
+        counts = sorted({int(n) for n in _as_list(data["n_keyframes"])})
+    except (TypeError, ValueError):
+        raise InputError(
+            f"n_keyframes must be whole numbers: {data['n_keyframes']!r}", source
+        ) from None
+    if not counts or counts[0] < 2:
+        raise InputError(f"n_keyframes must be ≥ 2 (first and last frame): {counts}", source)
+    data["n_keyframes"] = counts
+    split = data["split"]
+    split["eval"] = [str(s) for s in _as_list(split["eval"])]
+    split["exclude_genres"] = sorted(str(g) for g in _as_list(split["exclude_genres"]))
+    names = [str(m) for m in _as_list(data["metrics"]["names"])]
+    bad = [m for m in names if m not in METRICS]
+    if bad:
+        raise InputError(f"unknown metric(s) {bad}; the runner computes {list(METRICS)}", source)
+    data["metrics"]["names"] = names
+    for (table, key), known in _CHOICES.items():
+        if data[table][key] not in known:
+            raise InputError(
+                f"{table}.{key} = {data[table][key]!r}; known: {', '.join(known)}", source
+            )
+    data["tables"] = [str(t) for t in _as_list(data["tables"])]
+    data["generated"] = {str(k): str(v) for k, v in data["generated"].items()}
+    config = ExperimentConfig(data, path)
+    config.keyframe_params()  # validates the keyframe [CHOICE]s with their own messages
+    return config
+
+
+def apply_override(raw: dict[str, Any], assignment: str) -> None:
+    """``"split.eval=train"`` / ``"n_keyframes=[3,9]"`` / ``"metrics.mse_wrap=true"``: set a
+    dotted key of ``raw``; the value is read as TOML (bare words as strings)."""
+    key, sep, text = assignment.partition("=")
+    if not sep or not key.strip():
+        raise InputError(f"--set takes key=value, got {assignment!r}")
+    try:
+        value = tomllib.loads(f"v = {text.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = text.strip()
+    parts = key.strip().split(".")
+    node = raw
+    for part in parts[:-1]:
+        node = node.setdefault(part, {})
+        if not isinstance(node, dict):
+            raise InputError(f"--set {key}: {part} is not a table")
+    node[parts[-1]] = value
+
+
+def load_config(path: str | Path, overrides: list[str] | None = None) -> ExperimentConfig:
+    """Read and validate a TOML experiment config; InputError naming the file otherwise."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("experiment config not found", path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read experiment config: {exc}", path) from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML: {exc}", path) from None
+    for assignment in overrides or []:
+        apply_override(raw, assignment)
+    return build_config(raw, str(path), path)

@@ -1,0 +1,121 @@
+"""Class M rows (trained in-betweeners): their in-betweens come from a model's output files.
+
+A row's outputs are a folder of per-sequence files named by sequence id, the sequence's whole
+motion from its frame 0 at 60 fps (only the frames of complete measures are scored):
+
+* ``<seq_id>.npy``: (F, 75) ``thesis_euler_75`` rows (trans m + 24 Euler triples in rad, the
+  store's Euler order) or (F, 225) ``fact_motion_225`` rows (6 zeros + trans + 24 row-major
+  rotation matrices; each matrix is projected to the nearest rotation by scipy).
+
+Which folder serves which row: the config's ``[generated]`` table or ``--generated``, keyed by
+``<row_key>@<N>`` (one N), ``<row_key>`` (every N) or ``*`` (a folder holding one subfolder
+per ``<row_key>@<N>``). Every file read is hashed into the run id.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dancedata.errors import InputError
+from dancedata.experiments.inbetween import Reconstruction, segment_map
+
+LAYOUTS = {75: "euler75", 225: "rotmat225"}
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _to_euler75(rows: np.ndarray, order: Any, path: Path) -> np.ndarray:
+    if rows.ndim != 2 or rows.shape[1] not in LAYOUTS:
+        raise InputError(f"expected (frames, 75) or (frames, 225) rows, got {rows.shape}", path)
+    rows = rows.astype(np.float64)
+    if not np.isfinite(rows).all():
+        raise InputError("generated motion holds NaN or infinite values", path)
+    if rows.shape[1] == 75:
+        return rows
+    from dancedata.compute.motion_representations import euler_per_joint
+
+    rotmat = rows[:, 9:].reshape(len(rows), 24, 3, 3)
+    euler = euler_per_joint(rotmat, order)
+    return np.concatenate([rows[:, 6:9], euler.reshape(len(rows), -1)], axis=1)
+
+
+class GeneratedOutputs:
+    """The model-output folders of a run, looked up per (row key, N)."""
+
+    def __init__(self, mapping: dict[str, str], config: Any) -> None:
+        self.mapping = {k: Path(v) for k, v in mapping.items()}
+        self.used: dict[str, dict[str, Any]] = {}
+        for key, folder in self.mapping.items():
+            if not folder.is_dir():
+                raise InputError(f"generated outputs for {key!r}: not a folder", folder)
+
+    def folder(self, row_key: str, n: int) -> Path | None:
+        for key in (f"{row_key}@{n}", row_key):
+            if key in self.mapping:
+                return self.mapping[key]
+        if "*" in self.mapping:
+            sub = self.mapping["*"] / f"{row_key}@{n}"
+            if sub.is_dir():
+                return sub
+        return None
+
+    def reconstruction(self, row_key: str, n: int, data: Any, rows: np.ndarray
+                       ) -> Reconstruction | str:  # fmt: skip
+        """The generated in-betweens of the measures ``rows``, or the reason there are none."""
+        folder = self.folder(row_key, n)
+        if folder is None:
+            return (
+                f"class M (trained model): no outputs given for {row_key}@{n} "
+                f"(pass --generated {row_key}@{n}=DIR of <seq_id>.npy)"
+            )
+        seqs = sorted(set(data.measure_seq[rows].tolist()))
+        missing = [data.sequences[s]["seq_id"] for s in seqs
+                   if not (folder / f"{data.sequences[s]['seq_id']}.npy").is_file()]  # fmt: skip
+        if missing:
+            return (
+                f"generated outputs for {row_key}@{n} in {folder} miss {len(missing)} of "
+                f"{len(seqs)} sequences (first: {missing[0]}.npy)"
+            )
+        compact = np.zeros((len(data.trans), 75))
+        hashes = {}
+        for s in seqs:
+            seq_id = data.sequences[s]["seq_id"]
+            path = folder / f"{seq_id}.npy"
+            try:
+                values = np.load(path, allow_pickle=False)
+            except (OSError, ValueError) as exc:
+                raise InputError(f"unreadable generated motion: {exc}", path) from None
+            x75 = _to_euler75(values, data.euler_order, path)
+            mine = rows[data.measure_seq[rows] == s]
+            need = int((data.local_start[mine] + data.length[mine]).max())
+            if len(x75) < need:
+                return f"{path} has {len(x75)} frames; the sequence's measures need {need}"
+            a = int(data.seq_offset[s])
+            span = int(data.sequences[s]["n_frames"])
+            compact[a : a + min(span, len(x75))] = x75[:span]
+            hashes[seq_id] = _sha256(path)
+        self.used[f"{row_key}@{n}"] = {"folder": str(folder), "sha256": hashes}
+        lengths = data.length[rows]
+        edges = np.stack([np.zeros_like(lengths), lengths - 1], axis=1)
+        seg = segment_map(data.start[rows], lengths, edges)
+        picked = compact[seg.frame]
+        return Reconstruction(
+            seg, picked[:, :3], data.euler_order, euler=picked[:, 3:].reshape(len(picked), -1, 3)
+        )
+
+    def input_hashes(self) -> list[str]:
+        return [f"{key}:{seq}:{h}" for key, used in sorted(self.used.items())
+                for seq, h in sorted(used["sha256"].items())]  # fmt: skip
+
+    def describe(self) -> dict[str, Any]:
+        return {k: {"folder": v["folder"], "files": len(v["sha256"])} for k, v in self.used.items()}
