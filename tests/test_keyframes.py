@@ -443,3 +443,39 @@ def test_non_finite_motion_or_curves_are_one_line_errors(small_store: Path, tmp_
         keyframes(store, KeyframesOptions(strategies=["dp"], n_keyframes=[3]))
     with pytest.raises(InputError, match="peaks:onset: the curve of .* holds NaN or Inf"):
         keyframes(store, KeyframesOptions(strategies=["onset"], n_keyframes=[3]))
+
+
+def test_a_keyframe_run_feeds_the_in_betweeners(small_store: Path) -> None:
+    """Table → KeyframeRun → SegmentMap → linear_slerp equals even keyframes + SLERP computed
+    measure by measure from the loader's views."""
+    import dancedata
+    from dancedata.experiments.inbetween import linear_slerp
+    from dancedata.experiments.reconstruction_error import mse_euler75
+    from dancedata.pipeline.keyframes import KeyframesOptions, keyframe_run, keyframes
+
+    result = keyframes(small_store, KeyframesOptions(strategies=["even", "dp"], n_keyframes=[5]))
+    run = keyframe_run(small_store, strategy="even", n_keyframes=5)
+    assert run.run_id == dancedata.open_store(small_store).manifest["config"]["run_ids"]["even@5"]
+    store = dancedata.open_store(small_store, result.version)
+    measures = store.measures.to_pylist()
+    assert run.keyframes.shape == (len(measures), 5)
+    seg = run.segments()
+    quat, trans = store._full("motion/quat"), store._full("motion/trans")
+    euler = store._full("motion/euler")
+    rec = linear_slerp(quat, trans, seg, "XYZ", truth_euler=euler)
+    truth = np.concatenate([trans, euler.reshape(len(euler), -1)], axis=1)[seg.frame]
+    pooled = mse_euler75(truth, rec.euler75())
+    # the same thing one measure at a time, from the views
+    total, frames = 0.0, 0
+    for m in measures:
+        x = store.view(m["seq_id"], "thesis_euler_75")[m["frame_start"] : m["frame_stop"]]
+        q = store.motion(m["seq_id"], "quat")[m["frame_start"] : m["frame_stop"]]
+        from dancedata.experiments.inbetween import segment_map
+
+        one = segment_map([0], [len(x)], even_keyframes(len(x), 5).indices[None])
+        r = linear_slerp(q, x[:, :3], one, "XYZ", truth_euler=x[:, 3:].reshape(len(x), 24, 3))
+        total += mse_euler75(x, r.euler75()) * len(x)
+        frames += len(x)
+    assert pooled == pytest.approx(total / frames, rel=1e-9)
+    with pytest.raises(InputError, match="no keyframes run"):
+        keyframe_run(small_store, strategy="onset", n_keyframes=5)

@@ -504,3 +504,86 @@ def read_keyframes(store: str | Path, version: str | None = None) -> Any:
             f"version {reader.version} has no keyframes table (run `dancedata keyframes`)"
         )
     return reader.table("keyframes")
+
+
+@dataclass(frozen=True)
+class KeyframeRun:
+    """The keyframes of one run (one strategy and N) of a version, per measure, ready for the
+    in-betweeners: ``segments()`` is their :class:`~dancedata.experiments.inbetween.SegmentMap`
+    over the store's frame-concatenated motion arrays."""
+
+    run_id: str
+    strategy: str
+    n_keyframes: int
+    seq_id: list[str]
+    measure: np.ndarray  # (M,)
+    motion_start: np.ndarray  # (M,) global frame of each measure's local frame 0
+    length: np.ndarray  # (M,) L
+    keyframes: np.ndarray  # (M, K) local frames
+
+    def segments(self) -> Any:
+        from dancedata.experiments.inbetween import segment_map
+
+        return segment_map(self.motion_start, self.length, self.keyframes)
+
+
+def keyframe_run(
+    store: str | Path,
+    run_id: str | None = None,
+    *,
+    strategy: str | None = None,
+    n_keyframes: int | None = None,
+    version: str | None = None,
+) -> KeyframeRun:
+    """One run of a version's keyframes table, by ``run_id`` or by ``strategy`` and N.
+
+    Measures come in the table's order (sequence, measure); their global frames and lengths are
+    taken from the sequences and measures tables of the same version.
+    """
+    reader = VersionReader(store, version)
+    table = read_keyframes(store, reader.version)
+    runs = reader.manifest.get("config", {}).get("run_ids", {})
+    if run_id is None:
+        if strategy is None or n_keyframes is None:
+            raise InputError("name a keyframe run by run_id, or by strategy and N")
+        key = f"{canonical_strategy(strategy)}@{int(n_keyframes)}"
+        if key not in runs:
+            raise InputError(
+                f"version {reader.version} has no keyframes run {key} (has {sorted(runs)})"
+            )
+        run_id = runs[key]
+    columns = table.to_pydict()
+    chosen = np.flatnonzero(np.asarray(columns["run_id"], dtype=object) == run_id)
+    if chosen.size == 0:
+        raise InputError(f"version {reader.version} has no keyframes run {run_id!r}")
+    seq_ids = np.asarray(columns["seq_id"], dtype=object)[chosen]
+    measure = np.asarray(columns["measure"], dtype=np.int64)[chosen]
+    k = np.asarray(columns["k"], dtype=np.int64)[chosen]
+    frame = np.asarray(columns["frame"], dtype=np.int64)[chosen]
+    per_measure = int(k.max()) + 1
+    if (
+        chosen.size % per_measure
+        or not (k.reshape(-1, per_measure) == np.arange(per_measure)).all()
+    ):
+        raise StoreError(
+            f"keyframes run {run_id} of version {reader.version} is not whole measures"
+        )
+    firsts = np.arange(0, chosen.size, per_measure)
+    sequences = {s["seq_id"]: s for s in reader.table("sequences").to_pylist()}
+    bounds = {
+        (r["seq_id"], r["measure"]): (r["frame_start"], r["frame_stop"])
+        for r in reader.table("measures").to_pylist()
+    }
+    seq_list = [str(s) for s in seq_ids[firsts]]
+    local = np.array([bounds[(s, int(m))] for s, m in zip(seq_list, measure[firsts], strict=True)])
+    starts = np.array([sequences[s]["frame_start"] for s in seq_list], dtype=np.int64)
+    return KeyframeRun(
+        run_id=run_id,
+        strategy=str(columns["strategy"][chosen[0]]),
+        n_keyframes=int(columns["n_keyframes"][chosen[0]]),
+        seq_id=seq_list,
+        measure=measure[firsts],
+        motion_start=starts + local[:, 0],
+        length=local[:, 1] - local[:, 0],
+        keyframes=frame.reshape(-1, per_measure),
+    )
