@@ -83,14 +83,17 @@ def batched_inbetween(ds, starts: np.ndarray, lengths: np.ndarray) -> dict[int, 
     from dancedata.experiments.keyframes import even_indices
     from dancedata.experiments.reconstruction_error import mse_euler75
 
-    quat = ds._full("motion/quat")
-    trans = ds._full("motion/trans")
-    euler = ds._full("motion/euler")
+    # Only the evaluated measures' frames, gathered once into compact arrays.
+    frames = np.concatenate([np.arange(s, s + n) for s, n in zip(starts, lengths, strict=True)])
+    quat = ds.zarr("motion/quat").get_orthogonal_selection((frames,))
+    trans = ds.zarr("motion/trans").get_orthogonal_selection((frames,))
+    euler = ds.zarr("motion/euler").get_orthogonal_selection((frames,))
     x75 = np.concatenate([trans, euler.reshape(len(euler), -1)], axis=1)
+    compact_starts = np.cumsum(lengths) - lengths
     out = {}
     for n in NS:
         kf = np.stack([even_indices(int(length), n) for length in lengths])
-        seg = segment_map(starts, lengths, kf)
+        seg = segment_map(compact_starts, lengths, kf)
         rec = linear_slerp(quat, trans, seg, "XYZ", truth_euler=euler)
         truth = x75[seg.frame]
         lin = mse_euler75(truth, rec.euler75())

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from dancedata.errors import InputError
-from dancedata.experiments.inbetween import EulerOrder, Reconstruction, SegmentMap
+from dancedata.experiments.inbetween import EulerOrder, Reconstruction, SegmentMap, _rows
 
 BEZIER_SOLVERS: tuple[str, ...] = ("closed_form", "lm")
 BEZIER_GROUPS: tuple[str, ...] = ("channel_slot", "channel")
@@ -52,7 +52,8 @@ def linear_control_points(p0: np.ndarray, p3: np.ndarray) -> tuple[np.ndarray, n
 
 
 def _channels(x: np.ndarray, segments: SegmentMap) -> np.ndarray:
-    values = np.asarray(x, dtype=np.float64)
+    """``x`` checked, not converted (callers gather rows, then convert: see ``_rows``)."""
+    values = np.asarray(x)
     if values.ndim != 2:
         raise InputError(f"Bézier input must be (frames, channels), got shape {values.shape}")
     if segments.frame.size and int(segments.frame.max()) >= values.shape[0]:
@@ -68,8 +69,8 @@ def _segment_starts(segments: SegmentMap) -> np.ndarray:
 
 def _fit_closed_form(values: np.ndarray, segments: SegmentMap) -> tuple[np.ndarray, np.ndarray]:
     basis = bernstein3(segments.u)  # (F', 4)
-    xa, xb = values[segments.left], values[segments.right]
-    target = values[segments.frame] - basis[:, :1] * xa - basis[:, 3:] * xb  # (F', C)
+    xa, xb = _rows(values, segments.left), _rows(values, segments.right)
+    target = _rows(values, segments.frame) - basis[:, :1] * xa - basis[:, 3:] * xb  # (F', C)
     starts = _segment_starts(segments)
     b1, b2 = basis[:, 1], basis[:, 2]
     a11 = np.add.reduceat(b1 * b1, starts)
@@ -93,12 +94,13 @@ def _fit_lm(values: np.ndarray, segments: SegmentMap, tol: float) -> tuple[np.nd
     p1 = np.empty((a_all.size, n_channels))
     p2 = np.empty((a_all.size, n_channels))
     for s, (a, b) in enumerate(zip(a_all.tolist(), b_all.tolist(), strict=True)):
-        lin1, lin2 = linear_control_points(values[a], values[b])
+        xa, xb = _rows(values, a), _rows(values, b)
+        lin1, lin2 = linear_control_points(xa, xb)
         if b - a < MIN_BEZIER_GAP:
             p1[s], p2[s] = lin1, lin2
             continue
         basis = bernstein3((np.arange(a, b + 1) - a) / (b - a))  # (n, 4)
-        target = values[a : b + 1] - basis[:, :1] * values[a] - basis[:, 3:] * values[b]
+        target = _rows(values, slice(a, b + 1)) - basis[:, :1] * xa - basis[:, 3:] * xb
 
         def residual(p: np.ndarray, basis=basis, target=target) -> np.ndarray:
             q1, q2 = p[:n_channels], p[n_channels:]
@@ -140,7 +142,7 @@ def bezier_fit(
     a, b = segments.segment_ends()
     short = (b - a) < MIN_BEZIER_GAP
     if short.any():
-        lin1, lin2 = linear_control_points(values[a[short]], values[b[short]])
+        lin1, lin2 = linear_control_points(_rows(values, a[short]), _rows(values, b[short]))
         p1[short], p2[short] = lin1, lin2
     return p1, p2
 
@@ -151,13 +153,13 @@ def bezier_eval(x: np.ndarray, segments: SegmentMap, p1: np.ndarray, p2: np.ndar
     seg = segments.segment
     basis = bernstein3(segments.u)
     out = (
-        basis[:, :1] * values[segments.left]
+        basis[:, :1] * _rows(values, segments.left)
         + basis[:, 1:2] * p1[seg]
         + basis[:, 2:3] * p2[seg]
-        + basis[:, 3:] * values[segments.right]
+        + basis[:, 3:] * _rows(values, segments.right)
     )
     keep = segments.is_keyframe
-    out[keep] = values[segments.frame[keep]]
+    out[keep] = _rows(values, segments.frame[keep])
     return out
 
 
@@ -166,9 +168,9 @@ def linear_channels(x: np.ndarray, segments: SegmentMap) -> np.ndarray:
     comparison baseline of §3.1: Euler angles interpolated as numbers, not rotations)."""
     values = _channels(x, segments)
     u = segments.u[:, None]
-    out = (1.0 - u) * values[segments.left] + u * values[segments.right]
+    out = (1.0 - u) * _rows(values, segments.left) + u * _rows(values, segments.right)
     keep = segments.is_keyframe
-    out[keep] = values[segments.frame[keep]]
+    out[keep] = _rows(values, segments.frame[keep])
     return out
 
 
@@ -205,7 +207,7 @@ class BezierTrainMean:
         values = _channels(x, segments)
         p1, p2 = bezier_fit(values, segments, solver)
         a, b = segments.segment_ends()
-        p0, p3 = values[a], values[b]
+        p0, p3 = _rows(values, a), _rows(values, b)
         if self.param == "chord_relative":
             chord = p3 - p0
             valid = np.abs(chord) >= CHORD_GUARD
@@ -246,7 +248,7 @@ class BezierTrainMean:
         if self.param == "absolute":
             return m1.copy(), m2.copy()
         a, b = segments.segment_ends()
-        p0, p3 = values[a], values[b]
+        p0, p3 = _rows(values, a), _rows(values, b)
         return p0 + m1 * (p3 - p0), p0 + m2 * (p3 - p0)
 
     def config(self) -> dict[str, Any]:
@@ -274,7 +276,9 @@ def bezier_reconstruction(
     if trans_mode == "linear":
         a, b = segments.segment_ends()
         p1, p2 = p1.copy(), p2.copy()
-        p1[:, :3], p2[:, :3] = linear_control_points(values[a, :3], values[b, :3])
+        p1[:, :3], p2[:, :3] = linear_control_points(
+            _rows(values, a)[:, :3], _rows(values, b)[:, :3]
+        )
     curve = bezier_eval(values, segments, p1, p2)
     n = curve.shape[0]
     return Reconstruction(

@@ -187,6 +187,11 @@ class Reconstruction:
         return rotmat_to_axis_angle(self.rotmat)
 
 
+def _rows(values: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``values[index]`` as float64 (the rows only, never the whole array)."""
+    return np.asarray(values[index], dtype=np.float64)
+
+
 def _check_frames(name: str, values: np.ndarray, segments: SegmentMap) -> None:
     if segments.frame.size and int(segments.frame.max()) >= values.shape[0]:
         raise InputError(
@@ -215,17 +220,17 @@ def linear_slerp(
     Returns:
         A :class:`Reconstruction` of the segment map's frames; keyframe rows equal the input.
     """
-    quat = np.asarray(quat, dtype=np.float64)
-    trans = np.asarray(trans, dtype=np.float64)
+    # Gather first, convert after: the inputs may be a whole store's float32 arrays.
+    quat, trans = np.asarray(quat), np.asarray(trans)
     _check_frames("quat", quat, segments)
     _check_frames("trans", trans, segments)
     u = segments.u
-    q = slerp(quat[segments.left], quat[segments.right], u[:, None])
-    t = (1.0 - u)[:, None] * trans[segments.left] + u[:, None] * trans[segments.right]
+    q = slerp(_rows(quat, segments.left), _rows(quat, segments.right), u[:, None])
+    t = (1.0 - u)[:, None] * _rows(trans, segments.left) + u[:, None] * _rows(trans, segments.right)
     keep = segments.is_keyframe
-    q[keep] = quat[segments.frame[keep]]
-    t[keep] = trans[segments.frame[keep]]
+    q[keep] = _rows(quat, segments.frame[keep])
+    t[keep] = _rows(trans, segments.frame[keep])
     truth = None
     if truth_euler is not None:
-        truth = np.asarray(truth_euler, dtype=np.float64)[segments.frame]
+        truth = _rows(np.asarray(truth_euler), segments.frame)
     return Reconstruction(segments, t, euler_order, quat=q, truth_euler=truth)
