@@ -479,3 +479,34 @@ def test_a_keyframe_run_feeds_the_in_betweeners(small_store: Path) -> None:
     assert pooled == pytest.approx(total / frames, rel=1e-9)
     with pytest.raises(InputError, match="no keyframes run"):
         keyframe_run(small_store, strategy="onset", n_keyframes=5)
+
+
+@pytest.mark.real_data
+def test_dp_on_a_real_measure_matches_the_spec_sanity_check(real_data: Path) -> None:
+    """EXPERIMENTS.md §8: gJS_sFM_cAll_d02_mJS4_ch09, measure 3 (L = 120 at 120 BPM), euler75
+    rows (XYZ, float32 as stored): the keyframes the spec's independent script found."""
+    from dancedata.aist_names import music_bpm, parse_sequence_name
+    from dancedata.compute.measures import measure_bounds
+    from dancedata.compute.motion_representations import representations_from_axis_angle
+    from dancedata.io.aist import read_motion
+
+    path = real_data / "aist" / "motions" / "gJS_sFM_cAll_d02_mJS4_ch09.pkl"
+    motion = read_motion(path)
+    euler = representations_from_axis_angle(motion.axis_angle, ("euler",), "XYZ")["euler"]
+    x = np.concatenate([motion.trans_m, euler.reshape(len(euler), -1).astype(np.float32)], 1)
+    bpm = music_bpm(parse_sequence_name(path.stem).music_id)
+    start, stop = measure_bounds(motion.n_frames, bpm, 60.0)[3]
+    assert stop - start == 120
+    measure = x[start:stop]
+    expected = {
+        ("vertical", "max", 3): [0, 21, 119],
+        ("vertical", "max", 5): [0, 6, 12, 15, 119],
+        ("vertical", "max", 9): [0, 5, 7, 8, 13, 18, 97, 101, 119],
+        ("vertical", "sum", 3): [0, 118, 119],
+        ("vertical", "sum", 5): [0, 116, 117, 118, 119],
+        ("vertical", "sum", 9): [0, *range(112, 120)],
+        ("perpendicular", "max", 9): [0, 6, 7, 8, 14, 18, 87, 110, 119],
+    }
+    for (distance, combine, n), frames in expected.items():
+        found, _ = dp_keyframes(measure, n, distance, combine)
+        assert found.indices.tolist() == frames, (distance, combine, n)
