@@ -1,0 +1,346 @@
+"""``dancedata evaluate`` end to end on a real (synthetic-content) store, and the generated-motion
+readers. The store is built by the CLI (synth → ingest → featurize → segment); generated motion
+is the ground truth plus noise, written in the FACT, SMPL-pickle and joint-position layouts; the
+record's numbers are checked against direct calls of the metric functions."""
+
+from __future__ import annotations
+
+import json
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+import dancedata
+from dancedata.compute.rotations import axis_angle_to_rotmat, quat_to_axis_angle
+from dancedata.errors import InputError
+from dancedata.experiments.metrics import (
+    bas_bailando,
+    bas_mint,
+    beat_frames,
+    fid,
+    mse,
+)
+from dancedata.io.generated_motion import read_generated_motion
+from dancedata.smpl_model import load_smpl_model, smpl_joint_positions
+from tests.helpers import run_cli
+from tests.test_motion_families import write_npz_model
+
+SPLIT = ("--split", "train")  # the 4-sequence synthetic store has crossmodal train only
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("evaluate")
+    raw, st = root / "raw", root / "st"
+    run_cli("synth", "aist", str(raw), "--sequences", "4", "--seed", "0", "-q")
+    run_cli("ingest", "aist", str(raw), "--store", str(st), "-q")
+    run_cli("featurize", str(st), "-q")
+    run_cli("segment", str(st), "-q")
+    return st
+
+
+@pytest.fixture(scope="module")
+def model_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_npz_model(tmp_path_factory.mktemp("smpl") / "smpl.npz")
+
+
+def fact_rows(aa: np.ndarray, trans: np.ndarray) -> np.ndarray:
+    rot = axis_angle_to_rotmat(aa).reshape(len(aa), -1)
+    return np.concatenate([np.zeros((len(aa), 6)), trans, rot], axis=1)
+
+
+def noisy_motion(store: Path, seed: int = 0) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per train sequence: ground-truth axis-angle + a constant per-joint offset, translation."""
+    s = dancedata.open_store(store)
+    rng = np.random.default_rng(seed)
+    out = {}
+    for seq in s.seq_ids(split="train"):
+        aa = s.motion(seq, "axis_angle").astype(np.float64)
+        out[seq] = (aa + rng.normal(scale=0.05, size=(1, 24, 3)), s.motion(seq, "trans") * 1.0)
+    return out
+
+
+def write_three_layouts(folder: Path, motion: dict, model_path: Path) -> dict[str, str]:
+    """One sequence per layout: FACT rows (.npy, batch of 1), SMPL pickle (with scaling),
+    joint positions (.npy)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    model = load_smpl_model(model_path)
+    layouts = {}
+    for k, (seq, (aa, trans)) in enumerate(sorted(motion.items())):
+        if k == 0:
+            np.save(folder / f"{seq}.npy", fact_rows(aa, trans)[None])
+            layouts[seq] = "fact225"
+        elif k == 1:
+            data = {
+                "smpl_poses": aa.reshape(len(aa), 72),
+                "smpl_trans": trans * 95.0,
+                "smpl_scaling": np.array([95.0]),
+            }
+            (folder / f"{seq}.pkl").write_bytes(pickle.dumps(data, protocol=4))
+            layouts[seq] = "smpl"
+        else:
+            np.save(folder / f"{seq}.npy", smpl_joint_positions(model, aa, trans))
+            layouts[seq] = "positions"
+    return layouts
+
+
+# ------------------------------------------------------------------------------ readers
+
+
+def test_reader_recognises_each_layout(tmp_path: Path) -> None:
+    rng = np.random.default_rng(0)
+    aa = rng.normal(scale=0.3, size=(10, 24, 3))
+    trans = rng.normal(size=(10, 3))
+    np.save(tmp_path / "a.npy", fact_rows(aa, trans))
+    fact = read_generated_motion(tmp_path / "a.npy")
+    assert fact.layout == "fact225" and fact.fact_rows.shape == (10, 225)
+    (tmp_path / "b.pkl").write_bytes(
+        pickle.dumps(
+            {
+                "smpl_poses": aa.reshape(10, 72),
+                "smpl_trans": trans * 2,
+                "smpl_scaling": np.array([2.0]),
+                "full_pose": rng.normal(size=(10, 24, 3)),
+            }
+        )
+    )
+    smpl = read_generated_motion(tmp_path / "b.pkl")
+    assert smpl.layout == "smpl" and smpl.positions.shape == (10, 24, 3)
+    np.testing.assert_allclose(smpl.trans, trans)
+    np.testing.assert_array_equal(smpl.axis_angle, aa)
+    np.savez(tmp_path / "c.npz", positions=rng.normal(size=(10, 72)))
+    assert read_generated_motion(tmp_path / "c.npz").positions.shape == (10, 24, 3)
+    legacy = {
+        "pred_motion": axis_angle_to_rotmat(aa).reshape(1, 10, 216),
+        "pred_trans": trans[None],
+    }
+    (tmp_path / "d.pkl").write_bytes(pickle.dumps(legacy))
+    np.testing.assert_allclose(
+        read_generated_motion(tmp_path / "d.pkl").fact_rows, fact_rows(aa, trans)
+    )
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [
+        ("bad.npy", lambda p: np.save(p, np.zeros((10, 7))), "unknown generated-motion layout"),
+        ("nan.npy", lambda p: np.save(p, np.full((5, 24, 3), np.nan)), "NaN or Inf"),
+        ("junk.pkl", lambda p: p.write_bytes(b"\x80\x04not a pickle"), "pickle"),
+        ("code.pkl", lambda p: p.write_bytes(pickle.dumps(print)), "unsafe pickle"),
+        ("list.pkl", lambda p: p.write_bytes(pickle.dumps([1, 2])), "dict of arrays"),
+        ("short.npy", lambda p: np.save(p, np.zeros((1, 225))), "frames"),
+        ("text.npy", lambda p: p.write_text("hello"), "cannot read as a numpy file"),
+    ],
+)
+def test_reader_refuses_malformed_files_naming_them(
+    tmp_path: Path, name: str, content, message: str
+) -> None:
+    path = tmp_path / name
+    content(path)
+    with pytest.raises(InputError, match=message) as info:
+        read_generated_motion(path)
+    assert name in str(info.value)
+
+
+# ----------------------------------------------------------------------------- end to end
+
+
+def test_evaluate_cli_matches_direct_metric_calls(
+    store: Path, model_path: Path, tmp_path: Path
+) -> None:
+    motion = noisy_motion(store)
+    layouts = write_three_layouts(tmp_path / "gen", motion, model_path)
+    out = tmp_path / "res"
+    proc = run_cli(
+        "evaluate",
+        str(store),
+        "--generated",
+        str(tmp_path / "gen"),
+        *SPLIT,
+        "--smpl-model",
+        str(model_path),
+        "--out",
+        str(out),
+    )
+    assert "fid_k" in proc.stdout and "bas_mint" in proc.stdout
+    record = json.loads((out / "results.json").read_text())
+    table = pq.read_table(out / "results.parquet")
+    assert record["store_version"] == dancedata.open_store(store).version
+    assert record["split"] == "crossmodal:train" and record["dancedata_version"]
+    assert record["generated"]["layouts"] == sorted(set(layouts.values()))
+    assert record["n_scored"] == record["n_sequences"] == 3
+    by_metric = {r["metric"]: r for r in record["results"]}
+    assert set(table.column("metric").to_pylist()) == set(by_metric)
+    for row in table.to_pylist():
+        assert row["value"] == pytest.approx(by_metric[row["metric"]]["value"], nan_ok=True)
+        assert json.loads(row["variant"]) == by_metric[row["metric"]]["convention"]
+        assert row["store_version"] == record["store_version"] and row["run_id"]
+
+    # direct calls on the same inputs
+    s = dancedata.open_store(store)
+    model = load_smpl_model(model_path)
+    seqs = sorted(motion)
+    gt_pos = [
+        smpl_joint_positions(model, s.motion(q, "axis_angle"), s.motion(q, "trans")) for q in seqs
+    ]
+    gen_pos = [smpl_joint_positions(model, *motion[q]) for q in seqs]
+    for kind, name in (("kinetic", "fid_k"), ("geometric", "fid_g")):
+        direct = fid(gen_pos, gt_pos, kind).value
+        assert by_metric[name]["value"] == pytest.approx(direct, rel=1e-6, abs=1e-6)
+    beats = [beat_frames(s.audio(q, "beats")) for q in seqs]
+    mint = np.mean([bas_mint(p, b) for p, b in zip(gen_pos, beats, strict=True)])
+    bail = np.mean([bas_bailando(p, b) for p, b in zip(gen_pos, beats, strict=True)])
+    assert by_metric["bas_mint"]["value"] == pytest.approx(mint, abs=1e-9)
+    assert by_metric["bas_bailando"]["value"] == pytest.approx(bail, abs=1e-9)
+    # MSE: only the two sequences with rotations; the positions-only one is listed, with why
+    rot_seqs = [q for q in seqs if layouts[q] != "positions"]
+    from dancedata.compute.rotations import axis_angle_to_euler
+
+    truth = [s.view(q, "thesis_euler_75") for q in rot_seqs]
+    recon = [
+        np.concatenate(
+            [motion[q][1], axis_angle_to_euler(motion[q][0], "XYZ").reshape(len(motion[q][0]), -1)],
+            1,
+        )
+        for q in rot_seqs
+    ]
+    direct_mse = mse(truth, recon).value
+    assert by_metric["mse"]["value"] == pytest.approx(direct_mse, rel=1e-5)
+    assert by_metric["mse"]["n_units"] == 2
+    positions_only = [q for q in seqs if layouts[q] == "positions"][0]
+    assert by_metric["mse"]["unscored"] == [
+        {
+            "seq_id": positions_only,
+            "reason": "generated motion holds joint positions only (no rotations)",
+        }
+    ]
+    assert "not scored " + positions_only in proc.stderr
+
+
+def test_malformed_and_missing_files_are_reported_not_dropped(
+    store: Path, model_path: Path, tmp_path: Path
+) -> None:
+    motion = noisy_motion(store, seed=1)
+    gen = tmp_path / "gen"
+    write_three_layouts(gen, motion, model_path)
+    seqs = sorted(motion)
+    # one file malformed (wrong width), one missing
+    for suffix in (".npy", ".pkl"):
+        (gen / f"{seqs[0]}{suffix}").unlink(missing_ok=True)
+        (gen / f"{seqs[1]}{suffix}").unlink(missing_ok=True)
+    np.save(gen / f"{seqs[0]}.npy", np.zeros((100, 7)))
+    out = tmp_path / "res"
+    args = (
+        "evaluate",
+        str(store),
+        "--generated",
+        str(gen),
+        *SPLIT,
+        "--smpl-model",
+        str(model_path),
+        "--out",
+        str(out),
+    )
+    proc = run_cli(*args)  # exit 0: the record is written, the unscored are listed
+    record = json.loads((out / "results.json").read_text())
+    assert record["n_scored"] == 1 and record["n_sequences"] == 3
+    unscored = {u["seq_id"]: u for u in record["unscored_sequences"]}
+    bad_reason = next(iter(unscored[seqs[0]]["reasons"]))
+    assert "unknown generated-motion layout" in bad_reason and f"{seqs[0]}.npy" in bad_reason
+    assert "no generated file" in next(iter(unscored[seqs[1]]["reasons"]))
+    assert f"not scored {seqs[0]}" in proc.stderr and f"not scored {seqs[1]}" in proc.stderr
+    # FID needs 2 sequences: skipped with its reason, never a number from one
+    assert "fid_k" in record["skipped_metrics"]
+    assert all(r["metric"] != "fid_k" for r in record["results"])
+    rows = pq.read_table(out / "results.parquet").to_pylist()
+    assert rows and all(r["n_unscored"] >= 2 for r in rows)
+    assert all(seqs[0] in r["unscored"] for r in rows)
+    # --strict: the same record, exit 1
+    strict = run_cli(*args, "--strict", check=False)
+    assert strict.returncode == 1
+
+
+def test_nothing_scorable_is_one_error_line(store: Path, tmp_path: Path) -> None:
+    (tmp_path / "empty").mkdir()
+    proc = run_cli(
+        "evaluate",
+        str(store),
+        "--generated",
+        str(tmp_path / "empty"),
+        *SPLIT,
+        "--out",
+        str(tmp_path / "res"),
+        check=False,
+    )
+    assert proc.returncode == 1
+    assert proc.stderr.startswith("error: ") and "no sequence of the split" in proc.stderr
+    assert not (tmp_path / "res").exists()
+    bad_split = run_cli(
+        "evaluate",
+        str(store),
+        "--generated",
+        str(tmp_path / "empty"),
+        "--split",
+        "test",
+        check=False,
+    )
+    assert bad_split.returncode == 1 and "has no sequences" in bad_split.stderr
+
+
+def test_ground_truth_against_itself_scores_zero(
+    store: Path, model_path: Path, tmp_path: Path
+) -> None:
+    """The store as its own generated motion: MSE, FID_k, FID_g, FPD, FMD all 0 (FID within
+    the accuracy of sqrtm on a singular 3-sample covariance)."""
+    out = tmp_path / "res"
+    run_cli(
+        "evaluate",
+        str(store),
+        "--generated",
+        str(store),
+        *SPLIT,
+        "--smpl-model",
+        str(model_path),
+        "--out",
+        str(out),
+    )
+    record = json.loads((out / "results.json").read_text())
+    by_metric = {r["metric"]: r["value"] for r in record["results"]}
+    assert abs(by_metric["mse"]) < 1e-12  # generated Euler angles recomputed from axis-angle
+    assert abs(by_metric["fid_k"]) < 1e-4 and abs(by_metric["fid_g"]) < 1e-4
+    assert abs(by_metric["fpd"]) < 1e-4 and abs(by_metric["fmd"]) < 1e-4
+    assert by_metric["div_k"] == pytest.approx(by_metric["div_k_gt"])
+
+
+def test_fid_decreases_with_more_keyframes(store: Path, model_path: Path) -> None:
+    """The thesis's metric verification (000 §4.1): FID(GT, even + linear SLERP) falls from
+    N = 3 to N = 9 (unit: measure, so there are more units than with sequences)."""
+    from dancedata.experiments.inbetween import linear_slerp, segment_map
+    from dancedata.experiments.keyframes import even_indices
+
+    s = dancedata.open_store(store)
+    model = load_smpl_model(model_path)
+    measures = s.measures.to_pylist()
+    values = {}
+    for n in (3, 5, 9):
+        gt_units, rec_units = [], []
+        for seq in s.seq_ids():
+            rows = [m for m in measures if m["seq_id"] == seq]
+            quat, trans = s.motion(seq, "quat"), s.motion(seq, "trans")
+            aa = s.motion(seq, "axis_angle")
+            starts = np.array([m["frame_start"] for m in rows])
+            lengths = np.array([m["frame_stop"] - m["frame_start"] for m in rows])
+            kf = np.stack([even_indices(int(length), n) for length in lengths])
+            rec = linear_slerp(quat, trans, segment_map(starts, lengths, kf))
+            rec_pos = smpl_joint_positions(model, quat_to_axis_angle(rec.quat), rec.trans)
+            gt_pos = smpl_joint_positions(model, aa, trans)
+            offset = 0
+            for start, length in zip(starts, lengths, strict=True):
+                rec_units.append(rec_pos[offset : offset + length])
+                gt_units.append(gt_pos[start : start + length])
+                offset += length
+        values[n] = fid(rec_units, gt_units, "kinetic").value
+    assert values[3] > values[5] > values[9] > 0, values
