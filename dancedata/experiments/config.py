@@ -196,7 +196,7 @@ def _merge(defaults: dict[str, Any], given: dict[str, Any], where: str, source: 
     for key, value in given.items():
         if key not in defaults:
             known = ", ".join(sorted(defaults))
-            raise InputError(f"unknown key {where}{key!r} (known: {known})", source)
+            raise InputError(f"unknown key '{where}{key}' (known: {known})", source)
         if isinstance(defaults[key], dict) and key not in ("stem_weights", "nmfd_weights",
                                                          "generated"):  # fmt: skip
             if not isinstance(value, dict):
