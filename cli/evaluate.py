@@ -52,7 +52,7 @@ def evaluate_command(
         bool, typer.Option(help="Wrap Euler angle differences to (−π, π] in the MSE.")
     ] = False,
     mse_reduce: Annotated[
-        str, typer.Option(help="MSE reduction: pooled, measure_mean or sequence_mean.")
+        str, typer.Option(help="MSE reduction over sequences: pooled or sequence_mean.")
     ] = "pooled",
     kinetic_mode: Annotated[
         str, typer.Option(help="Kinetic features: parity (AIST++ code) or corrected.")
@@ -80,6 +80,13 @@ def evaluate_command(
     fpd_aggregate: Annotated[
         str, typer.Option(help="FPD/FMD over music pieces: per_piece_mean or pooled.")
     ] = "per_piece_mean",
+    fid_root_relative: Annotated[
+        bool,
+        typer.Option(
+            help="Subtract each sequence's first-frame root from its joints before the FID "
+            "features (Bailando); off in mint."
+        ),
+    ] = False,
     skip_frames: Annotated[
         int, typer.Option(min=0, help="Frames to drop at the start of both (mint: 120).")
     ] = 0,
@@ -122,6 +129,7 @@ def evaluate_command(
         fpd_parity=fpd_parity,
         fpd_aggregate=fpd_aggregate,
         skip_frames=skip_frames,
+        fid_root_relative=fid_root_relative,
     )
     options = EvaluateOptions(
         generated=Path(generated),

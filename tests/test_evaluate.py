@@ -344,3 +344,107 @@ def test_fid_decreases_with_more_keyframes(store: Path, model_path: Path) -> Non
                 offset += length
         values[n] = fid(rec_units, gt_units, "kinetic").value
     assert values[3] > values[5] > values[9] > 0, values
+
+
+# ------------------------------------------------------------------- real AIST++ motions
+
+
+@pytest.fixture(scope="module")
+def real_store(real_data: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The 4 real AIST++ motions (no music in the real folder), ingested and segmented."""
+    store = tmp_path_factory.mktemp("real-evaluate") / "store"
+    run_cli(
+        "ingest",
+        "aist",
+        str(real_data / "aist"),
+        "--store",
+        str(store),
+        "--allow-missing-music",
+        "-q",
+    )
+    run_cli("segment", str(store), "-q")
+    return store
+
+
+def _even_slerp(store: dancedata.DanceStore, seq: str, n: int):
+    from dancedata.compute.rotations import axis_angle_to_euler, axis_angle_to_quat
+    from dancedata.experiments.inbetween import linear_slerp, segment_map
+    from dancedata.experiments.keyframes import even_indices
+
+    rows = [m for m in store.measures.to_pylist() if m["seq_id"] == seq]
+    aa, trans = store.motion(seq, "axis_angle"), store.motion(seq, "trans")
+    euler = axis_angle_to_euler(aa, "XYZ")
+    starts = np.array([m["frame_start"] for m in rows])
+    lengths = np.array([m["frame_stop"] - m["frame_start"] for m in rows])
+    kf = np.stack([even_indices(int(length), n) for length in lengths])
+    segments = segment_map(starts, lengths, kf)
+    rec = linear_slerp(axis_angle_to_quat(aa), trans, segments, "XYZ", truth_euler=euler)
+    truth = np.concatenate([trans, euler.reshape(len(euler), -1)], axis=1)[segments.frame]
+    return rec, truth, starts, lengths, aa, trans
+
+
+@pytest.mark.real_data
+def test_real_motions_even_slerp_mse_and_fid_path(real_store: Path, model_path: Path) -> None:
+    """EXPERIMENTS.md §7.2 on the real motions: even + linear SLERP, euler75 XYZ pooled MSE
+    0.336 / 0.209 / 0.084 for N = 3 / 5 / 9 (within 1e-3), and FID_k(GT, reconstruction)
+    falling from N = 3 to 9 (SMPL joints from the synthetic test model: no SMPL ships)."""
+    s = dancedata.open_store(real_store)
+    model = load_smpl_model(model_path)
+    expected = {3: 0.336, 5: 0.209, 9: 0.084}
+    fids = {}
+    for n in (3, 5, 9):
+        truths, recons, gt_units, rec_units = [], [], [], []
+        for seq in s.seq_ids():
+            rec, truth, starts, lengths, aa, trans = _even_slerp(s, seq, n)
+            truths.append(truth)
+            recons.append(rec.euler75())
+            rec_pos = smpl_joint_positions(model, quat_to_axis_angle(rec.quat), rec.trans)
+            gt_pos = smpl_joint_positions(model, aa, trans)
+            offset = 0
+            for start, length in zip(starts, lengths, strict=True):
+                rec_units.append(rec_pos[offset : offset + length])
+                gt_units.append(gt_pos[start : start + length])
+                offset += length
+        result = mse(truths, recons)
+        assert result.value == pytest.approx(expected[n], abs=1e-3), (n, result.value)
+        assert result.n_frames == sum(len(t) for t in truths)
+        fids[n] = fid(rec_units, gt_units, "kinetic").value
+    assert fids[3] > fids[5] > fids[9] > 0, fids
+
+
+@pytest.mark.real_data
+def test_real_store_against_itself(real_store: Path, model_path: Path, tmp_path: Path) -> None:
+    """FID(GT, GT) = 0 on the real motions; without music beats (no music, not featurized)
+    every beat metric is skipped and every sequence is listed for it with the reason."""
+    out = tmp_path / "res"
+    proc = run_cli(
+        "evaluate",
+        str(real_store),
+        "--generated",
+        str(real_store),
+        *SPLIT,
+        "--smpl-model",
+        str(model_path),
+        "--out",
+        str(out),
+    )
+    record = json.loads((out / "results.json").read_text())
+    by_metric = {r["metric"]: r for r in record["results"]}
+    assert abs(by_metric["fid_k"]["value"]) < 1e-4 and abs(by_metric["fid_g"]["value"]) < 1e-4
+    assert by_metric["fid_k"]["n_units"] == 4
+    assert abs(by_metric["mse"]["value"]) < 1e-12
+    assert "bas_mint" in record["skipped_metrics"] and "bas_mint" not in by_metric
+    assert len(record["unscored_sequences"]) == 4
+    for item in record["unscored_sequences"]:
+        assert item["reasons"] == {
+            "the store has no audio/beats (run featurize with the fact family)": [
+                "bas_mint",
+                "bas_bailando",
+                "bas_msd_motion2music",
+                "bas_msd_music2motion",
+                "beat_coverage",
+                "beat_hit_rate",
+                "beat_accuracy",
+            ]
+        }
+    assert proc.stderr.count("the store has no audio/beats") == 4

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from dancedata.errors import InputError
 from dancedata.experiments.metrics import (
     MetricResult,
     bas_bailando,
@@ -98,6 +99,33 @@ class EvaluateParams:
     fpd_frame_step: int = 3
     skip_frames: int = 0
     length: str = "common_min"
+    fid_root_relative: bool = False
+
+    def __post_init__(self) -> None:
+        allowed = {
+            "mse_space": ("euler75", "euler72", "rotmat"),
+            "mse_reduce": ("pooled", "sequence_mean"),  # units here are whole sequences
+            "fid_unit": ("sequence",),
+            "fid_reference": ("paired_gt",),
+            "kinetic_mode": ("parity", "corrected"),
+            "beat_detector": ("mint", "bailando"),
+            "fpd_parity": ("spec", "transflower"),
+            "fpd_aggregate": ("per_piece_mean", "pooled"),
+            "length": ("common_min",),
+        }
+        for name, options in allowed.items():
+            if getattr(self, name) not in options:
+                raise InputError(
+                    f"{name} must be one of {', '.join(options)} for evaluate, "
+                    f"got {getattr(self, name)!r}"
+                )
+        if self.mse_wrap and self.mse_space == "rotmat":
+            raise InputError("mse_wrap applies to Euler spaces only, not to rotmat")
+        if self.skip_frames < 0 or self.beat_tol < 0 or self.fpd_frame_step < 1:
+            raise InputError("skip_frames and beat_tol must be ≥ 0, fpd_frame_step ≥ 1")
+        step = self.fps / self.msd_fps if self.msd_fps > 0 else 0.0
+        if step < 1 or abs(step - round(step)) > 1e-9:
+            raise InputError(f"msd_fps {self.msd_fps} must divide fps {self.fps}")
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -177,6 +205,7 @@ def _feature_metrics(seqs: list[EvalSequence], p: EvaluateParams, out: list[Metr
             fps=p.fps,
             kinetic_mode=p.kinetic_mode,  # type: ignore[arg-type]
             geometric_frame_time_s=p.geometric_frame_time_s,
+            root_relative_first_frame=p.fid_root_relative,
             normalize=p.normalize,
             drop_constant_ref_columns=p.drop_constant_ref_columns,
             eps=p.fid_eps,
@@ -195,6 +224,7 @@ def _feature_metrics(seqs: list[EvalSequence], p: EvaluateParams, out: list[Metr
             "fps": p.fps,
             "kinetic_mode": p.kinetic_mode,
             "geometric_frame_time_s": p.geometric_frame_time_s,
+            "root_relative_first_frame": p.fid_root_relative,
         }
         f_gen = motion_feature_matrix(gen, kind, **feats)  # type: ignore[arg-type]
         f_gt = motion_feature_matrix(gt, kind, **feats)  # type: ignore[arg-type]
@@ -214,10 +244,7 @@ def _beat_metrics(
     out: list[MetricResult],
     unscored: dict[str, list[dict[str, str]]],
 ) -> None:
-    step = p.fps / p.msd_fps
-    if abs(step - round(step)) > 1e-9 or round(step) < 1:
-        raise ValueError(f"msd_fps {p.msd_fps} must divide fps {p.fps}")
-    step = round(step)
+    step = round(p.fps / p.msd_fps)  # an integer ratio (checked by EvaluateParams)
     per: dict[str, list[tuple[str, float]]] = defaultdict(list)
     for s in seqs:
         pos, beats = s.gen_positions, s.music_beats

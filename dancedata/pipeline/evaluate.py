@@ -130,6 +130,12 @@ def _gt_side(
             "ground truth has no joint positions (give --smpl-model, or featurize "
             "--motion-families positions)"
         )
+    if positions is not None and positions.shape[1] != 24:
+        missing["positions"] = (
+            f"ground-truth positions have {positions.shape[1]} joints; FID and beat metrics "
+            "here need SMPL-24 (give --smpl-model)"
+        )
+        positions = None
     return {"axis_angle": aa, "trans": trans, "euler": euler, "positions": positions}, missing
 
 
