@@ -183,13 +183,18 @@ def test_class_m_rows_fill_from_generated_outputs(store: Path, tmp_path: Path) -
     seq_ids = list(dict.fromkeys(m["seq_id"] for m in ds.measure_rows("train")))
     for seq_id in seq_ids:  # the ground truth itself, as a perfect model would write it
         np.save(folder / f"{seq_id}.npy", ds.view(seq_id, "thesis_euler_75"))
-    filled = run(config, store, tmp_path / "gen-out",
-                 generated={"even+transformer_motion@9": str(folder)})  # fmt: skip
+    fact = tmp_path / "fact"  # the layout `dancedata evaluate` reads: FACT (F, 225) rows
+    fact.mkdir()
+    for seq_id in seq_ids:
+        np.save(fact / f"{seq_id}.npy", ds.view(seq_id, "fact_motion_225"))
+    generated = {"even+transformer_motion@9": str(folder), "even+transformer_motion@3": str(fact)}
+    filled = run(config, store, tmp_path / "gen-out", generated=generated)
     rows, skipped = load_results([tmp_path / "gen-out"])
     table = build("4.4", rows, skipped)
     motion = table.cells[table.labels.index("KF_{even_eulers}/\\hat{D}_{motion}")]
     assert motion[0].value == pytest.approx(0.0, abs=1e-12)  # MSE of the ground truth
-    assert build("4.5", rows, skipped).cells[2][0].value is None  # no outputs for N = 3
+    from_fact = build("4.5", rows, skipped).cells[2][0].value
+    assert from_fact == pytest.approx(0.0, abs=1e-9)  # rotation matrices → the same Euler rows
     assert filled.record["generated"]["even+transformer_motion@9"]["files"] == len(seq_ids)
     assert filled.record["run_id"] != empty.record["run_id"]  # the outputs' hashes count
 
@@ -198,7 +203,8 @@ def test_class_m_rows_fill_from_generated_outputs(store: Path, tmp_path: Path) -
                   generated={"even+transformer_motion@9": str(folder)})  # fmt: skip
     why = [s["reason"] for s in partial.record["skipped"]
            if s["row_key"] == "even+transformer_motion" and s["n_keyframes"] == 9]  # fmt: skip
-    assert why and f"miss 1 of {len(seq_ids)} sequences (first: {seq_ids[0]}.npy)" in why[0]
+    expected = f"miss 1 of {len(seq_ids)} sequences (first: {seq_ids[0]}.npy|.npz|.pkl)"
+    assert why and expected in why[0]
 
 
 # --------------------------------------------------------------- record, run id, config

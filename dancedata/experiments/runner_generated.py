@@ -1,11 +1,17 @@
 """Class M rows (trained in-betweeners): their in-betweens come from a model's output files.
 
 A row's outputs are a folder of per-sequence files named by sequence id, the sequence's whole
-motion from its frame 0 at 60 fps (only the frames of complete measures are scored):
+motion from its frame 0 at 60 fps (only the frames of complete measures are scored): the
+folder layout ``dancedata evaluate`` reads (:mod:`dancedata.io.generated_motion`), plus one
+more layout for the thesis's own output space:
 
-* ``<seq_id>.npy``: (F, 75) ``thesis_euler_75`` rows (trans m + 24 Euler triples in rad, the
-  store's Euler order) or (F, 225) ``fact_motion_225`` rows (6 zeros + trans + 24 row-major
-  rotation matrices; each matrix is projected to the nearest rotation by scipy).
+* ``<seq_id>.npy`` (F, 75): ``thesis_euler_75`` rows (trans m + 24 Euler triples in rad, the
+  store's Euler order);
+* ``<seq_id>.npy|.npz|.pkl`` with FACT (F, 225) rows (each matrix projected to the nearest
+  rotation) or SMPL ``smpl_poses`` + ``smpl_trans``, read by
+  :func:`dancedata.io.generated_motion.read_generated_motion`; converted to Euler angles in the
+  store's order. Files with joint positions only cannot be scored in a rotation space and are
+  reported.
 
 Which folder serves which row: the config's ``[generated]`` table or ``--generated``, keyed by
 ``<row_key>@<N>`` (one N), ``<row_key>`` (every N) or ``*`` (a folder holding one subfolder
@@ -23,8 +29,6 @@ import numpy as np
 from dancedata.errors import InputError
 from dancedata.experiments.inbetween import Reconstruction, segment_map
 
-LAYOUTS = {75: "euler75", 225: "rotmat225"}
-
 
 def _sha256(path: Path) -> str:
     digest = hashlib.sha256()
@@ -34,19 +38,42 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def _to_euler75(rows: np.ndarray, order: Any, path: Path) -> np.ndarray:
-    if rows.ndim != 2 or rows.shape[1] not in LAYOUTS:
-        raise InputError(f"expected (frames, 75) or (frames, 225) rows, got {rows.shape}", path)
-    rows = rows.astype(np.float64)
+def _euler75_npy(path: Path) -> np.ndarray | None:
+    """(F, 75) rows of a ``.npy`` in the thesis layout, or None for any other layout."""
+    if path.suffix.lower() != ".npy":
+        return None
+    try:
+        values = np.load(path, allow_pickle=False, mmap_mode="r")
+    except (OSError, ValueError) as exc:
+        raise InputError(f"unreadable generated motion: {exc}", path) from None
+    if values.ndim == 3 and values.shape[0] == 1:
+        values = values[0]
+    if values.ndim != 2 or values.shape[1] != 75:
+        return None
+    return np.asarray(values, dtype=np.float64)
+
+
+def _to_euler75(path: Path, order: Any) -> np.ndarray | str:
+    """(F, 75) Euler rows of one generated file, or the reason it cannot give them."""
+    rows = _euler75_npy(path)
+    if rows is None:
+        from dancedata.compute.motion_representations import euler_per_joint
+        from dancedata.compute.rotations import axis_angle_to_rotmat
+        from dancedata.experiments.evaluate_inputs import fact_rows_to_smpl
+        from dancedata.io.generated_motion import read_generated_motion
+
+        motion = read_generated_motion(path)
+        if motion.fact_rows is not None:
+            axis_angle, trans = fact_rows_to_smpl(motion.fact_rows)
+        elif motion.axis_angle is not None:
+            axis_angle, trans = motion.axis_angle, motion.trans
+        else:
+            return f"{path} holds joint positions only ({motion.layout}): no rotations to score"
+        euler = euler_per_joint(axis_angle_to_rotmat(axis_angle), order)
+        rows = np.concatenate([trans, euler.reshape(len(euler), -1)], axis=1)
     if not np.isfinite(rows).all():
         raise InputError("generated motion holds NaN or infinite values", path)
-    if rows.shape[1] == 75:
-        return rows
-    from dancedata.compute.motion_representations import euler_per_joint
-
-    rotmat = rows[:, 9:].reshape(len(rows), 24, 3, 3)
-    euler = euler_per_joint(rotmat, order)
-    return np.concatenate([rows[:, 6:9], euler.reshape(len(rows), -1)], axis=1)
+    return rows
 
 
 class GeneratedOutputs:
@@ -78,24 +105,25 @@ class GeneratedOutputs:
                 f"class M (trained model): no outputs given for {row_key}@{n} "
                 f"(pass --generated {row_key}@{n}=DIR of <seq_id>.npy)"
             )
+        from dancedata.io.generated_motion import find_generated_file
+
         seqs = sorted(set(data.measure_seq[rows].tolist()))
-        missing = [data.sequences[s]["seq_id"] for s in seqs
-                   if not (folder / f"{data.sequences[s]['seq_id']}.npy").is_file()]  # fmt: skip
+        files = {s: find_generated_file(folder, data.sequences[s]["seq_id"]) for s in seqs}
+        missing = [data.sequences[s]["seq_id"] for s in seqs if files[s] is None]
         if missing:
             return (
                 f"generated outputs for {row_key}@{n} in {folder} miss {len(missing)} of "
-                f"{len(seqs)} sequences (first: {missing[0]}.npy)"
+                f"{len(seqs)} sequences (first: {missing[0]}.npy|.npz|.pkl)"
             )
         compact = np.zeros((len(data.trans), 75))
         hashes = {}
         for s in seqs:
             seq_id = data.sequences[s]["seq_id"]
-            path = folder / f"{seq_id}.npy"
-            try:
-                values = np.load(path, allow_pickle=False)
-            except (OSError, ValueError) as exc:
-                raise InputError(f"unreadable generated motion: {exc}", path) from None
-            x75 = _to_euler75(values, data.euler_order, path)
+            path = files[s]
+            assert path is not None
+            x75 = _to_euler75(path, data.euler_order)
+            if isinstance(x75, str):
+                return x75
             mine = rows[data.measure_seq[rows] == s]
             need = int((data.local_start[mine] + data.length[mine]).max())
             if len(x75) < need:
