@@ -18,6 +18,8 @@ DEMO_SEQUENCES ?= 24
 DEMO_REPORT := data/stores/aist-demo-report.html
 DEMO_PLOT := data/stores/aist-demo-plot.png
 DEMO_RENDER := data/stores/aist-demo-render.mp4
+# The demo experiment (experiments/demo.toml): results.parquet + results.json.
+DEMO_RESULTS := data/stores/aist-demo-experiment
 # The sequence drawn for docs/img/plot.png (default: the store's first, looked up at run time).
 DEMO_PLOT_SEQ ?= $$($(PY) -c "import dancedata; print(dancedata.open_store('$(DEMO_STORE)').seq_ids()[0])")
 
@@ -62,6 +64,8 @@ pipeline: $(STAMP) $(VIZ_STAMP) browser
 	$(BIN)/dancedata render $(DEMO_STORE) $(DEMO_PLOT_SEQ) docs/img/render.png --start 240
 	$(CHROMIUM) --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1280,900 \
 		--screenshot=docs/img/report.png file://$(abspath $(DEMO_REPORT)) 2>/dev/null
+	$(BIN)/dancedata experiment run experiments/demo.toml --store $(DEMO_STORE) --out $(DEMO_RESULTS)
+	$(BIN)/dancedata experiment table demo --results $(DEMO_RESULTS)
 
 # Tests use a temporary feature cache (tests/conftest.py sets DANCEDATA_CACHE), never ~/.cache.
 test: $(STEMS_STAMP) $(VIZ_STAMP) browser
