@@ -93,6 +93,14 @@ class EvaluateSummary:
             )
         for name, reason in self.record["skipped_metrics"].items():
             lines.append(f"{name:<22}{'—':>14}{0:>7}{0:>9}  ({reason})")
+        for row in self.record["results"]:
+            constant = row["details"].get("constant_ref_columns", 0)
+            if constant and not row["details"].get("dropped_columns"):
+                lines.append(
+                    f"note: {row['metric']}: {constant} feature column(s) constant in the ground "
+                    "truth, z-scored by 1e-10 (EXPERIMENTS.md §4.2 hazard); "
+                    "--drop-constant-ref-columns leaves them out"
+                )
         return "\n".join(lines)
 
     def message(self, command: str) -> str:

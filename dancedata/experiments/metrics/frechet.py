@@ -131,9 +131,12 @@ def frechet_distance(
     r = _features("reference features", reference)
     if x.shape[1] != r.shape[1]:
         raise ValueError(f"feature widths differ: {x.shape[1]} vs {r.shape[1]}")
-    details: dict[str, Any] = {"n_reference": int(r.shape[0])}
+    keep = r.std(axis=0) > 0
+    details: dict[str, Any] = {
+        "n_reference": int(r.shape[0]),
+        "constant_ref_columns": int((~keep).sum()),
+    }
     if drop_constant_ref_columns:
-        keep = r.std(axis=0) > 0
         details["dropped_columns"] = int((~keep).sum())
         x, r = x[:, keep], r[:, keep]
     if normalize:
