@@ -5,9 +5,11 @@ exits 1 with one ``error:`` line, writes no version and leaves no lock or tempor
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from pathlib import Path
 
@@ -308,6 +310,27 @@ def test_classic_mac_line_endings_through_read_bvh(tmp_path):
     path = tmp_path / "mac.bvh"
     path.write_bytes(text.replace("\n", "\r").encode())
     np.testing.assert_array_equal(read_bvh(path).values, parse_bvh(text).values)
+    # CR-only for the first 2 MiB, LF later: not a Mac file, read_bvh agrees with parse_bvh.
+    mixed = rig_text(3, pad="\r" * 2**21).replace("\n", "\r", 8).encode()
+    path.write_bytes(mixed)
+    with pytest.raises(InputError) as from_file:
+        read_bvh(path)
+    with pytest.raises(InputError) as from_bytes:
+        parse_bvh(mixed, path=path)
+    assert str(from_file.value) == str(from_bytes.value)
+    assert "line 1: joint name" in str(from_file.value)
+
+
+def test_read_bvh_from_a_pipe(tmp_path):
+    """A FIFO cannot seek: the head is read in prefixes, then the whole stream parsed."""
+    fifo = tmp_path / "pipe.bvh"
+    os.mkfifo(fifo)
+    text = rig_text(4, pad=" " * 3 * 2**20)
+    writer = threading.Thread(target=fifo.write_text, args=(text,))
+    writer.start()
+    clip = read_bvh(fifo)
+    writer.join()
+    np.testing.assert_array_equal(clip.values, parse_bvh(text).values)
 
 
 # --------------------------------------------------------------------------------------------

@@ -5,12 +5,18 @@ The reader is built for files found in the wild (see REFERENCE.md, "BVH edge cas
 * the HIERARCHY is read by a small tokenizer with line numbers, iteratively (no recursion limit);
   every joint keeps its own channel list and order, a joint may carry 0-6 channels, any number of
   End Sites, and names such as ``mixamorig:Hips`` or ``Bip01.L``;
+* the head (hierarchy, ``Frames:``, ``Frame Time:``) is scanned straight from the bytes of a
+  growing prefix of the file, within documented limits (joints, End Sites, depth, name and line
+  lengths, 64 MiB of head, Frame Time 1e-4 to 10 s; see :mod:`dancedata.io.bvh_head`), so a
+  hostile file (200 MB on one line, a hierarchy 10,000 deep) fails at once with one line and
+  bounded memory;
 * the MOTION block is parsed by pyarrow's multi-threaded CSV reader after whitespace
   normalisation (tabs, CRLF, repeated blanks). Anything that path does not accept cleanly is
   re-read by a strict line-by-line parser, which either accepts the file or raises
   :class:`~dancedata.errors.InputError` naming the line: wrong channel count, glued numbers
   (``0.0-7.5``), non-finite values, a frame count that says more (truncated file) or less than
-  is present.
+  is present. It reads a line lazily and at most one value past the channel count, so frame
+  rows all on one line fail at once too.
 
 Semantics: a channel list ``Zrotation Xrotation Yrotation`` means ``R = Rz @ Rx @ Ry``, i.e. scipy
 intrinsic ``from_euler("ZXY", [z, x, y], degrees=True)``. Position channels, on the root or on any
@@ -307,27 +313,36 @@ def read_bvh(path: str | Path) -> BvhClip:
     """Read a BVH file. Raises InputError (with the line number) on malformed input.
 
     The head is read in growing prefixes (see :mod:`dancedata.io.bvh_head`), so a file that is
-    not BVH fails having read little of it; the frame rows are then read in one piece."""
+    not BVH fails having read little of it; the frame rows are then read in one piece. The
+    result is exactly :func:`parse_bvh` of the file's bytes."""
     path = Path(path)
     try:
         with path.open("rb") as handle:
-            prefix, head = read_head(handle, lambda data, at_eof: _file_head(data, at_eof, path))
-            if head is None:  # classic Mac line endings, or a stream: parse the whole file
-                return parse_bvh(prefix + handle.read(), path=path)
+            prefix, (head, mac) = read_head(
+                handle, lambda data, at_eof: _file_head(data, at_eof, path)
+            )
+            if not handle.seekable():  # a pipe: the head is fine, parse the whole stream
+                return parse_bvh(bytes(prefix) + handle.read(), path=path)
             handle.seek(head.data_start)
             del prefix
             block = handle.read()
+            if mac and b"\n" in block:  # not CR-only after all: parse it as parse_bvh would
+                handle.seek(0)
+                return parse_bvh(handle.read(), path=path)
     except OSError as exc:
         raise InputError(f"cannot read BVH file: {exc.strerror or exc}", path) from exc
+    if mac:
+        block = block.replace(b"\r", b"\n")
     return _clip(head, block, path)
 
 
-def _file_head(data: bytearray, at_eof: bool, path: Path) -> _Head | None:
-    """The head parsed from a prefix of the file, or None when the file must be parsed whole:
-    its first bytes have CR but no LF line endings (converted by :func:`parse_bvh`)."""
-    if b"\n" not in data and b"\r" in data:
-        return None
-    return _parse_head(HeadBytes(data, at_eof, path), path)
+def _file_head(data: bytearray, at_eof: bool, path: Path) -> tuple[_Head, bool]:
+    """The head parsed from a prefix of the file, and whether it has classic Mac line endings
+    (CR, no LF: read with CR as LF, as :func:`parse_bvh` does; same length, same offsets)."""
+    mac = b"\n" not in data and b"\r" in data
+    if mac:
+        data = data.replace(b"\r", b"\n")
+    return _parse_head(HeadBytes(data, at_eof, path), path), mac
 
 
 def parse_bvh(data: bytes | str, path: str | Path | None = None) -> BvhClip:

@@ -66,6 +66,7 @@ _CHUNK_BYTES = 2**16
 _T = TypeVar("_T")
 _WORD = re.compile(rb"\S{1,%d}" % (MAX_WORD_BYTES + 1))
 _NON_SPACE = re.compile(rb"\S")
+_TEXT_WORD = re.compile(r"\S+")  # on decoded text: splits at Unicode whitespace like str.split
 _MOTION_AT = re.compile(rb"(?i)[ \t]*MOTION[ \t]*\r?(?=\n|\Z)")
 _MOTION_LINE = re.compile(rb"(?im)^[ \t]*MOTION[ \t]*\r?(?=\n|\Z)")
 
@@ -154,17 +155,20 @@ class Words:
 
     def _fill(self) -> bool:
         """Queue the words of the next chunk of whole lines (or of a very long line's next
-        word); False when the words have ended."""
+        word); False when the words have ended. Blank space is skipped at C speed."""
         head, data = self.head, self.data
         while self.pos >= len(self.items):
             if self.done:
                 return False
             if self.motion is not None:
                 return self._finish(*self.motion)
-            if self.scan >= head.end:
+            word = _NON_SPACE.search(data, self.scan, head.end)
+            if word is None:
                 if not head.complete:
                     head.out_of_data(self.line)
+                self._advance_to(head.end)
                 return self._finish(None, self.line)
+            self._advance_to(word.start())
             limit = min(head.end, self.scan + _CHUNK_BYTES)
             if limit == head.end and head.complete:
                 stop = limit
@@ -179,48 +183,38 @@ class Words:
         return True
 
     def _queue_lines(self, stop: int) -> None:
-        """Queue the words of data[scan:stop] (whole lines), up to a MOTION line."""
+        """Queue the words of data[scan:stop] (scan at a word, stop after a newline or at the
+        end of the file), up to a MOTION line."""
         data, start = self.data, self.scan
-        first_line = self.line
-        if start == self.first or data[start - 1 : start] == b"\n":
-            motion = _MOTION_AT.match(data, start, stop)
-            motion = motion or _MOTION_LINE.search(data, start, stop)
-        else:  # the chunk starts inside a long line: a MOTION there is not alone on it
-            motion = _MOTION_LINE.search(data, start, stop)
+        motion = _MOTION_AT.match(data, self.line_start, stop) or _MOTION_LINE.search(
+            data, start, stop
+        )
         if motion is not None:  # it starts at the start of its line
-            self._advance_to(motion.start())
-            self.motion = (motion.end(), self.line)
-            stop = motion.start()
-        else:
-            self._advance_to(stop)
+            stop = max(motion.start(), start)
+            self.motion = (motion.end(), self.line + data.count(b"\n", start, stop))
         text = decode(data[start:stop])
-        items = []
-        for number, line in enumerate(text.split("\n"), start=first_line):
-            words = line.split()
-            if len(line) > MAX_WORD_BYTES:
-                self._check_word_length(max(words, key=len, default=""), number)
-            items += [(word, number) for word in words]
+        items: list[tuple[str, int]] = []
+        if text.count("\n") * 4 > len(text):  # mostly blank lines: find the words instead
+            line, counted = self.line, 0
+            for match in _TEXT_WORD.finditer(text):
+                line += text.count("\n", counted, match.start())
+                counted = match.start()
+                items.append((match.group(), line))
+        else:
+            for number, line_text in enumerate(text.split("\n"), start=self.line):
+                items += [(word, number) for word in line_text.split()]
+        if len(text) > MAX_WORD_BYTES:
+            for word, number in items:
+                self._check_word_length(word, number)
+        self._advance_to(stop)
         self.items, self.pos, self.whole_line = items, 0, True
 
     def _one_word(self) -> None:
-        """Queue the next word of a line longer than a chunk (nothing when that line ends in
-        blanks: then only move to the next line)."""
+        """Queue the next word of a line longer than a chunk (``scan`` is at that word)."""
         head, data = self.head, self.data
-        match = _WORD.search(data, self.scan, head.end)
-        if match is None:
-            if not head.complete:
-                head.out_of_data(self.line)
-            self._advance_to(head.end)
-            self.items, self.pos = [], 0
-            return
-        newline = data.rfind(b"\n", self.scan, match.start())
-        if newline >= 0:
-            self._advance_to(newline + 1)
-            self.items, self.pos = [], 0
-            return
+        match = _WORD.match(data, self.scan, head.end)
         if match.end() == head.end and not head.complete:
             head.out_of_data(self.line)
-        self._advance_to(match.start())
         word = match.group()
         self._check_word_length(word, self.line)
         if word.upper() == b"MOTION":
