@@ -102,8 +102,8 @@ class GeneratedOutputs:
         folder = self.folder(row_key, n)
         if folder is None:
             return (
-                f"class M (trained model): no outputs given for {row_key}@{n} "
-                f"(pass --generated {row_key}@{n}=DIR of <seq_id>.npy)"
+                "class M (trained model): no outputs given; pass --generated <row_key>@<N>=DIR "
+                "(one <seq_id>.npy|.npz|.pkl per sequence)"
             )
         from dancedata.io.generated_motion import find_generated_file
 
