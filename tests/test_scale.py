@@ -33,10 +33,18 @@ SMALL_UNITS = 4096  # 12 sequences (~11,900 frames) → two chunk-aligned motion
 
 
 def version_files(store: Path, version: str) -> dict[str, str]:
-    """sha256 of every file of a version but its manifest (which records times and counts)."""
+    """sha256 of every file of a version but its manifest (which records times and counts);
+    of checksums.json, only its ``files`` (the rest hashes the manifests)."""
     root = store / "versions" / version
+
+    def digest(path: Path) -> str:
+        data = path.read_bytes()
+        if path == root / "checksums.json":
+            data = json.dumps(json.loads(data)["files"], sort_keys=True).encode()
+        return hashlib.sha256(data).hexdigest()
+
     return {
-        p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        p.relative_to(root).as_posix(): digest(p)
         for p in sorted(root.rglob("*"))
         if p.is_file() and p.name != "manifest.json"
     }
