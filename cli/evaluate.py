@@ -90,6 +90,17 @@ def evaluate_command(
     skip_frames: Annotated[
         int, typer.Option(min=0, help="Frames to drop at the start of both (mint: 120).")
     ] = 0,
+    generated_fps: Annotated[
+        float | None,
+        typer.Option(
+            help="Frame rate of the generated motion (EDGE: 30); resampled to the store's "
+            "(decimation or SLERP). Default: the store's."
+        ),
+    ] = None,
+    generated_up_axis: Annotated[
+        str,
+        typer.Option(help="Up axis of the generated motion: y (SMPL, FACT, Bailando) or z (EDGE)."),
+    ] = "y",
     strict: Annotated[
         bool,
         typer.Option(help="Exit 1 (after writing the record) if any sequence was not scored."),
@@ -141,6 +152,8 @@ def evaluate_command(
         row_key=row_key,
         version=version,
         generated_version=generated_version,
+        generated_fps=generated_fps,
+        generated_up_axis=generated_up_axis,
         params=params,
     )
     summary = run(store, options)

@@ -63,12 +63,23 @@ class GeneratedMotion:
 
 
 def find_generated_file(folder: Path, seq_id: str) -> Path | None:
-    """``folder/<seq_id>.npy|.npz|.pkl`` (first found in that order), or None."""
+    """``folder/<seq_id>.npy|.npz|.pkl`` (first found in that order); else the one file named
+    ``<prefix>_<seq_id>.<suffix>`` (EDGE writes ``<epoch>_<name>.pkl``); else None. Several
+    prefixed files for one sequence are ambiguous: InputError."""
     for suffix in GENERATED_SUFFIXES:
         candidate = folder / f"{seq_id}{suffix}"
         if candidate.is_file():
             return candidate
-    return None
+    prefixed = sorted(
+        p
+        for suffix in GENERATED_SUFFIXES
+        for p in folder.glob(f"*_{seq_id}{suffix}")
+        if p.is_file()
+    )
+    if len(prefixed) > 1:
+        names = ", ".join(p.name for p in prefixed[:4])
+        raise InputError(f"several generated files for {seq_id} ({names}): keep one", folder)
+    return prefixed[0] if prefixed else None
 
 
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:

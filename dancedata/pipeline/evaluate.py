@@ -38,6 +38,8 @@ from dancedata.experiments.evaluate_inputs import (
     euler75_rows,
     fact225_rows,
     fact_rows_to_smpl,
+    resample_generated,
+    z_up_to_y_up,
 )
 from dancedata.experiments.metrics.beats import beat_frames
 from dancedata.io.generated_motion import (
@@ -64,6 +66,8 @@ class EvaluateOptions:
     row_key: str = "generated"
     version: str | None = None
     generated_version: str | None = None
+    generated_fps: float | None = None
+    generated_up_axis: str = "y"
     params: EvaluateParams = field(default_factory=EvaluateParams)
 
 
@@ -178,6 +182,17 @@ def _gen_from_file(path: Path) -> dict[str, Any]:
         "positions": motion.positions,
         "source": str(path),
     }
+
+
+def _adapt(gen: dict[str, Any], options: EvaluateOptions, fps: float) -> dict[str, Any]:
+    """Generated motion into the store's frame: y up, the store's frame rate."""
+    aa, trans, positions = gen["axis_angle"], gen["trans"], gen["positions"]
+    if options.generated_up_axis == "z":
+        aa, trans, positions = z_up_to_y_up(aa, trans, positions)
+    src = options.generated_fps or fps
+    if abs(src - fps) > 1e-9:
+        aa, trans, positions, _ = resample_generated(aa, trans, positions, src, fps)
+    return {**gen, "axis_angle": aa, "trans": trans, "positions": positions}
 
 
 def _gen_positions(gen: dict[str, Any], model: Any) -> tuple[np.ndarray | None, str | None]:
@@ -348,6 +363,10 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
     record; return it. Raises InputError / StoreError for a bad store, split or PATH, and when
     no sequence at all can be scored."""
     params = options.params
+    if options.generated_up_axis not in ("y", "z"):
+        raise InputError(f"--generated-up-axis must be y or z, got {options.generated_up_axis!r}")
+    if options.generated_fps is not None and not options.generated_fps > 0:
+        raise InputError(f"--generated-fps must be positive, got {options.generated_fps}")
     store = open_store(store_path, options.version)
     seq_ids = store.seq_ids(split=options.split, scheme=options.scheme)
     genres = set(options.exclude_genres)
@@ -401,6 +420,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
                     )
                 inputs.append(sha256_file(file))
                 gen = _gen_from_file(file)
+            gen = _adapt(gen, options, params.fps)
             gt, gt_missing = _gt_side(store, seq_id, model, euler_order)
             beats, beats_missing = _beats(store, seq_id)
             seq, info = _pair(
@@ -432,7 +452,9 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         "row_key": options.row_key,
         "smpl_model": model_id,
         "assumptions": {
-            "generated_fps": "store fps",
+            "generated_fps": options.generated_fps or "store fps",
+            "generated_up_axis": options.generated_up_axis,
+            "resampled_to": params.fps,
             "alignment": "frame i = frame i",
             "up_axis": "y",
             "units": "m, rad",
