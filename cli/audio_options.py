@@ -89,6 +89,6 @@ MaxAudioSeconds = Annotated[
         min=0,
         help="Most seconds of one track to decode (the span its sequences need plus 30 s, or "
         "the whole track when shorter). A track needing more is refused before decoding; 0: "
-        "no limit. The default families peak at about 1.6 GB per decoded hour per worker.",
+        "no limit. With the default families 10 decoded minutes peak at 2.5 GB per worker.",
     ),
 ]

@@ -78,7 +78,7 @@ def featurize(
     cache: UseCache = True,
     cache_dir: CacheDir = None,
     accept_changed_music: AcceptChangedMusic = False,
-    max_audio_seconds: MaxAudioSeconds = 1800.0,
+    max_audio_seconds: MaxAudioSeconds = 600.0,
     workers: Workers = 1,
     dask: Dask = None,
     version: VersionOpt = None,

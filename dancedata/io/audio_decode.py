@@ -39,9 +39,10 @@ MAX_ABS_SAMPLE = 1000.0
 BLOCK_FRAMES = 1 << 18
 RES_TYPE = "soxr_hq"  # librosa.load's default resampler
 # Default limit on the seconds of one track decoded at once (featurize --max-audio-seconds; the
-# tempo estimate of ingest bvh/video without --bpm): the default audio families peak at about
-# 1.6 GB RSS per decoded hour, so 30 minutes stay near 1 GB per worker.
-DEFAULT_MAX_AUDIO_SECONDS = 1800.0
+# tempo estimate of ingest bvh/video without --bpm). Measured with the default audio families
+# (fact, offline stems, nmfd), one process: 10 decoded minutes peak at 2.5 GB RSS (0.5 GB of it
+# the interpreter and libraries), about 2 GB more per further 10 minutes.
+DEFAULT_MAX_AUDIO_SECONDS = 600.0
 
 
 @dataclass(frozen=True)

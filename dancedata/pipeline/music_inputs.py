@@ -27,8 +27,8 @@ the feature cache key and the music table (``decoded_s``) record. A track no seq
 decoded whole.
 
 Limit: a span longer than ``max_audio_seconds`` (default :data:`DEFAULT_MAX_AUDIO_SECONDS`,
-``--max-audio-seconds``; 0 = no limit) is refused before any decoding: the default families
-peak at about 1.6 GB RSS per decoded hour in each worker (measured: 0.9 GB for 20 minutes).
+``--max-audio-seconds``; 0 = no limit) is refused before any decoding: with the default
+families 10 decoded minutes peak at 2.5 GB RSS per worker (measured; ~2 GB per 10 minutes).
 """
 
 from __future__ import annotations
