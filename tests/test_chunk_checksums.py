@@ -297,3 +297,17 @@ def test_info_shows_the_hash_of_the_newest_record(pristine):
     info = summarize(pristine)
     assert info["checksums_sha256"] == _sha(pristine / "versions" / "v3" / CHECKSUMS_FILE)
     assert f"record    checksums.json sha256 {info['checksums_sha256']}" in format_info(info)
+
+
+def test_arrays_opened_by_a_reader_pickle_with_their_checks(store):
+    """Dask and worker processes may ship an open array: the copy still refuses bad chunks."""
+    import pickle
+
+    from dancedata.store.reader import VersionReader
+
+    array = VersionReader(store).array("motion/trans")
+    copy = pickle.loads(pickle.dumps(array))
+    assert np.array_equal(np.asarray(copy[:]), np.asarray(array[:]))
+    _delete_everywhere(store, TRANS)
+    with pytest.raises(StoreError, match="array motion/trans chunk c/0/0: missing"):
+        pickle.loads(pickle.dumps(array))[:5]

@@ -1,5 +1,5 @@
-"""Which chunk files a zarr v3 array must have, and a read-only zarr store that refuses to
-return a chunk that is missing, fails its crc32c, or differs from ``checksums.json``.
+"""Which chunk files a zarr v3 array must have, and how to tell a chunk is intact (the reading
+side is :class:`dancedata.store.checked_store.CheckedStore`).
 
 Every array dancedata writes carries zarr v3's standard ``crc32c`` codec last in its codec
 chain (4 bytes of CRC-32C appended to each compressed chunk) and is written with
@@ -16,19 +16,11 @@ writing chunks equal to the fill value); for them a chunk is required when the v
 
 from __future__ import annotations
 
-import hashlib
 import itertools
-import json
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
-
-from dancedata.errors import StoreError
-
-if TYPE_CHECKING:
-    from zarr.abc.store import ByteRequest, Store
-    from zarr.core.buffer import Buffer, BufferPrototype
+from typing import Any
 
 CRC32C_CODEC = "crc32c"
 
@@ -135,99 +127,3 @@ def crc32c_matches(data: Any) -> bool:
         return False
     computed = np.uint32(google_crc32c.value(np.ascontiguousarray(raw[:-4]))).tobytes()
     return computed == raw[-4:].tobytes()
-
-
-# -- the checking store ------------------------------------------------------------------------
-def checked_store(
-    inner: Store,
-    where: str,
-    recorded: Callable[[], dict[str, Any]] | None = None,
-) -> Store:
-    """A read-only view of ``inner`` (the ``data.zarr`` of one version, named ``where`` in
-    messages) whose chunk reads raise StoreError for a missing or corrupted chunk.
-
-    ``recorded`` returns the version's ``checksums.json`` entries of data.zarr files keyed by
-    their path inside data.zarr (``motion/trans/c/0/0``); it is called at most once, the first
-    time a chunk of an array without crc32c is read, and may return {} (no record).
-    """
-    from zarr.storage import WrapperStore
-
-    class CheckedStore(WrapperStore):  # type: ignore[type-arg]
-        """See :func:`checked_store`."""
-
-        def __init__(self, store: Store) -> None:
-            super().__init__(store)
-            self._grids: dict[str, ChunkGrid | None] = {}
-            self._record: dict[str, Any] | None = None
-
-        def _with_store(self, store: Store) -> CheckedStore:
-            return CheckedStore(store)
-
-        async def _grid(self, array: str, prototype: BufferPrototype) -> ChunkGrid | None:
-            if array not in self._grids:
-                meta_key = f"{array}/zarr.json" if array else "zarr.json"
-                raw = await self._store.get(meta_key, prototype)
-                meta = None
-                if raw is not None:
-                    try:
-                        meta = json.loads(raw.to_bytes())
-                    except ValueError:
-                        meta = None
-                self._grids[array] = ChunkGrid.from_metadata(meta)
-            return self._grids[array]
-
-        def _recorded(self) -> dict[str, Any]:
-            if self._record is None:
-                self._record = (recorded() if recorded else None) or {}
-            return self._record
-
-        async def get(
-            self,
-            key: str,
-            prototype: BufferPrototype,
-            byte_range: ByteRequest | None = None,
-        ) -> Buffer | None:
-            value = await self._store.get(key, prototype, byte_range)
-            split = split_chunk_key(key)
-            if split is None or byte_range is not None:
-                return value
-            array, chunk = split
-            grid = await self._grid(array, prototype)
-            if grid is None:
-                return value
-            coords = grid.coords(chunk)
-            if coords is None or not grid.in_grid(coords):
-                return value
-            if grid.crc32c:
-                if value is None:
-                    raise StoreError(
-                        f"{describe_chunk(array, chunk)}: missing (every chunk of this array "
-                        "was written; reading it would return fill values)",
-                        where,
-                    )
-                if not crc32c_matches(value.as_numpy_array()):
-                    raise StoreError(
-                        f"{describe_chunk(array, chunk)}: crc32c checksum mismatch (the chunk "
-                        "is corrupted)",
-                        where,
-                    )
-                return value
-            entry = self._recorded().get(key)
-            if entry is None:
-                return value
-            if value is None:
-                raise StoreError(
-                    f"{describe_chunk(array, chunk)}: missing, but checksums.json recorded it "
-                    "at commit (reading it would return fill values)",
-                    where,
-                )
-            data = value.as_numpy_array()
-            if hashlib.sha256(data).hexdigest() != entry.get("sha256"):
-                raise StoreError(
-                    f"{describe_chunk(array, chunk)}: sha256 differs from checksums.json (the "
-                    "chunk is corrupted)",
-                    where,
-                )
-            return value
-
-    return CheckedStore(inner)

@@ -1,19 +1,19 @@
 """Read one committed version: manifest, parquet tables, zarr arrays and group attrs.
 
-Arrays are read through :func:`dancedata.store.chunks.checked_store`: a chunk that is missing or
-corrupted raises StoreError naming the version's data.zarr, the array and the chunk, instead of
-reading as fill values or wrong numbers (crc32c for arrays written with it; the sha256 recorded
-in checksums.json for arrays written before).
+Arrays are read through :class:`dancedata.store.checked_store.CheckedStore`: a chunk that is
+missing or corrupted raises StoreError naming the version's data.zarr, the array and the chunk,
+instead of reading as fill values or wrong numbers (crc32c for arrays written with it; the
+sha256 recorded in checksums.json for arrays written before).
 """
 
 from __future__ import annotations
 
+import functools
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dancedata.errors import StoreError
-from dancedata.store.chunks import checked_store
 from dancedata.store.fs import is_remote, zarr_store
 from dancedata.store.layout import TABLE_FILES, ZARR_DIR, StoreLayout
 
@@ -39,24 +39,6 @@ class VersionReader:
     def remote(self) -> bool:
         return is_remote(str(self.layout.root))
 
-    def _recorded_chunks(self) -> dict[str, Any]:
-        """checksums.json entries of data.zarr files, keyed by their path inside data.zarr (for
-        arrays written without crc32c); {} when the version has no readable record."""
-        if self.remote:
-            return {}
-        from dancedata.store.integrity import load_record
-
-        record = load_record(self.path) or {}
-        files = record.get("files")
-        if not isinstance(files, dict):
-            return {}
-        prefix = f"{ZARR_DIR}/"
-        return {
-            rel[len(prefix) :]: entry
-            for rel, entry in files.items()
-            if rel.startswith(prefix) and isinstance(entry, dict)
-        }
-
     @cached_property
     def root(self) -> zarr.Group | None:
         import zarr
@@ -70,9 +52,10 @@ class VersionReader:
 
         from zarr.storage import LocalStore
 
-        store = checked_store(
-            LocalStore(str(path), read_only=True), str(path), self._recorded_chunks
-        )
+        from dancedata.store.checked_store import CheckedStore
+
+        recorded = functools.partial(recorded_chunks, self.path)  # picklable, read on demand
+        store = CheckedStore(LocalStore(str(path), read_only=True), str(path), recorded)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=UserWarning)
             try:
@@ -85,8 +68,10 @@ class VersionReader:
 
         import zarr
 
+        from dancedata.store.checked_store import CheckedStore
+
         location = self.layout.zarr_location(self.version)
-        store = checked_store(zarr_store(location, read_only=True), str(location))
+        store = CheckedStore(zarr_store(location, read_only=True), str(location))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=UserWarning)
             try:
@@ -182,3 +167,21 @@ class VersionReader:
             return dict(root[name].attrs)
         except KeyError:
             return {}
+
+
+def recorded_chunks(version_dir: Path) -> dict[str, Any]:
+    """checksums.json entries of a local version's data.zarr files, keyed by their path inside
+    data.zarr (what the checking store needs for arrays written without crc32c); {} when the
+    version has no readable record."""
+    from dancedata.store.integrity import load_record
+
+    record = load_record(Path(version_dir)) or {}
+    files = record.get("files")
+    if not isinstance(files, dict):
+        return {}
+    prefix = f"{ZARR_DIR}/"
+    return {
+        rel[len(prefix) :]: entry
+        for rel, entry in files.items()
+        if rel.startswith(prefix) and isinstance(entry, dict)
+    }
