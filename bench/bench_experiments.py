@@ -113,9 +113,9 @@ def loop_reconstruct(quat, trans, x75, start: int, length: int, kf: np.ndarray) 
 
 def baseline(store: Path, split: str, strategies: list[str], sample: int) -> tuple:
     """(wall s, CPU s, {(row_key, N): mse}, measures done) of the per-measure loop."""
-    import dancedata
     from bench_keyframes import loop_dp, loop_peaks
 
+    import dancedata
     from dancedata.experiments.keyframes import even_indices
 
     wall, cpu = time.perf_counter(), time.process_time()
