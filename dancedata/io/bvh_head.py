@@ -30,6 +30,7 @@ from typing import BinaryIO, NoReturn, TypeVar
 from dancedata.errors import InputError
 
 __all__ = [
+    "FPS_RANGE",
     "FRAME_TIME_RANGE_S",
     "MAX_DEPTH",
     "MAX_END_SITES",
@@ -60,6 +61,8 @@ MAX_HEADER_BYTES = 64 * 2**20
 #: jerk scaled by fps³ and stored as float32, measures of 60 / bpm × 4 × fps frames), which
 #: stays finite and meaningful in this range and not for 5e-324 s (fps = inf) or 1e300 s.
 FRAME_TIME_RANGE_S = (1e-4, 10.0)
+#: The same range as frames per second (0.1 to 10,000), e.g. for a resampling target.
+FPS_RANGE = (1.0 / FRAME_TIME_RANGE_S[1], 1.0 / FRAME_TIME_RANGE_S[0])
 
 _FIRST_READ_BYTES = 2**20
 _CHUNK_BYTES = 2**16
