@@ -33,6 +33,7 @@ from dancedata.ingest.bvh_units import parse_units
 from dancedata.ingest.result import CommandResult
 from dancedata.ingest.run_state import IngestRun
 from dancedata.io.bvh_attrs import is_bvh_skeleton
+from dancedata.io.bvh_head import FPS_RANGE
 from dancedata.progress import progress
 from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
@@ -87,8 +88,11 @@ class BvhIngestOptions:
         )
 
     def check(self) -> None:
-        if self.fps is not None and not self.fps > 0:
-            raise InputError(f"--fps must be positive, not {self.fps}")
+        low, high = FPS_RANGE
+        if self.fps is not None and not low <= self.fps <= high:
+            raise InputError(
+                f"--fps must lie in {low:g} to {high:,.0f} frames per second, not {self.fps:g}"
+            )
         if self.smooth_cutoff_hz is not None and not self.smooth_cutoff_hz > 0:
             raise InputError(f"--smooth-cutoff must be positive, not {self.smooth_cutoff_hz}")
         if self.smooth_order < 1:
