@@ -410,3 +410,15 @@ def test_cli_skips_a_bad_frame_time_and_records_why(tmp_path):
     skipped = layout.read_manifest(version)["skipped"]
     assert len(skipped) == 1 and skipped[0]["path"].endswith("bad.bvh")
     assert "Frame Time 5e-324 s is outside the accepted" in skipped[0]["error"]
+
+
+@pytest.mark.parametrize("fps", [1e300, 1e-300, 20_000.0, 0.05, 0.0, -30.0, float("nan")])
+def test_resampling_target_outside_the_accepted_rates_is_refused(fps):
+    """``--fps`` takes the same range as Frame Time: 0.1 to 10,000 frames per second (1e300
+    crashed the resampler with a ValueError, 1e-300 was stored as such)."""
+    from dancedata.ingest.bvh import BvhIngestOptions
+
+    with pytest.raises(InputError, match=r"--fps must lie in 0.1 to 10,000 frames per second"):
+        BvhIngestOptions(fps=fps).check()
+    BvhIngestOptions(fps=bvh_head.FPS_RANGE[1]).check()
+    BvhIngestOptions(fps=bvh_head.FPS_RANGE[0]).check()
