@@ -9,7 +9,7 @@ must lie in the first :data:`MAX_HEADER_BYTES` of the file. :func:`read_head` re
 in growing prefixes (1 MiB first), so a file that is not BVH fails after reading little of it.
 
 Limits, far above any real rig (the five real files have at most 59 joints, 15 End Sites, chains
-of at most 9 joints and 24-character names; production rigs with faces and fingers have a few
+of at most 13 joints and 26-character names; production rigs with faces and fingers have a few
 hundred joints):
 
 * :data:`MAX_JOINTS` joints and :data:`MAX_END_SITES` End Sites in all;
