@@ -1,0 +1,185 @@
+"""PyTorch batching for the window datasets of :mod:`dancedata.torch_data` (needs torch).
+
+    from torch.utils.data import DataLoader
+    from dancedata.torch_data import MeasureDataset
+    from dancedata.torch_batching import LengthBucketSampler, pad_collate
+
+    ds = MeasureDataset("data/stores/aist-demo", split="train")
+    loader = DataLoader(ds, batch_sampler=LengthBucketSampler(ds.lengths, 8, seed=0),
+                        collate_fn=pad_collate, num_workers=2)
+    for batch in loader:
+        batch["motion"]   # (B, T, 225) float32, zero after each item's end
+        batch["mask"]     # (B, T) bool, True on real frames
+        batch["lengths"]  # (B,) int64
+
+Padding, masks and seeded orders follow :mod:`dancedata.batching` (numpy, no torch).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, Sampler
+
+from dancedata.batching import bucket_batches, epoch_permutation, lengths_mask, padded_length
+
+TIME_KEYS = ("motion", "audio")
+
+
+class PadCollate:
+    """``collate_fn`` padding ``motion`` / ``audio`` at the end of time to the batch's longest
+    item (rounded up to ``multiple_of``) with ``pad_value``; adds ``mask`` (B, T) bool and
+    ``lengths`` (B,) int64. Other tensors are stacked, numbers become tensors, strings lists.
+    Items with their own ``mask`` and ``length`` (fixed-length windows) keep them."""
+
+    def __init__(self, multiple_of: int = 1, pad_value: float = 0.0) -> None:
+        if multiple_of < 1:
+            raise ValueError(f"multiple_of must be ≥ 1 (got {multiple_of})")
+        self.multiple_of = multiple_of
+        self.pad_value = pad_value
+
+    def __call__(self, items: Sequence[dict[str, Any]]) -> dict[str, Any]:
+        time_keys = [k for k in TIME_KEYS if k in items[0]]
+        if not time_keys:
+            raise ValueError("pad_collate needs items with 'motion' or 'audio'")
+        frames = [int(item[time_keys[0]].shape[0]) for item in items]
+        lengths = [int(item.get("length", n)) for item, n in zip(items, frames, strict=True)]
+        total = padded_length(frames, self.multiple_of)
+        out: dict[str, Any] = {}
+        for key in items[0]:
+            values = [item[key] for item in items]
+            if key in TIME_KEYS:
+                out[key] = _pad(values, total, self.pad_value)
+            elif key in ("mask", "length"):
+                continue
+            elif isinstance(values[0], str):
+                out[key] = list(values)
+            elif isinstance(values[0], torch.Tensor | np.ndarray):
+                out[key] = torch.stack([torch.as_tensor(v) for v in values])
+            else:
+                out[key] = torch.tensor(values)
+        out["lengths"] = torch.tensor(lengths, dtype=torch.int64)
+        out["mask"] = torch.from_numpy(lengths_mask(lengths, total))
+        return out
+
+
+def _pad(values: list[Any], total: int, pad_value: float) -> torch.Tensor:
+    first = torch.as_tensor(values[0])
+    out = torch.full((len(values), total, *first.shape[1:]), pad_value, dtype=first.dtype)
+    for i, v in enumerate(values):
+        v = torch.as_tensor(v)
+        out[i, : v.shape[0]] = v
+    return out
+
+
+pad_collate = PadCollate()
+"""The default :class:`PadCollate` (no rounding, zeros)."""
+
+
+class SeededShuffleSampler(Sampler[int]):
+    """A permutation of ``range(n)`` per epoch from ``default_rng([seed, epoch])``: same seed,
+    same order, whatever torch's RNG state or the number of workers. The epoch advances by one
+    after each complete pass, or is set with :meth:`set_epoch`."""
+
+    def __init__(self, n: int, seed: int = 0, epoch: int = 0) -> None:
+        self.n, self.seed, self.epoch = int(n), int(seed), int(epoch)
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = int(epoch)
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __iter__(self) -> Iterator[int]:
+        # A generator: the epoch advances only once a pass has been read to its end (DataLoader
+        # may call iter() on a sampler more than once before reading it).
+        yield from epoch_permutation(self.n, self.seed, self.epoch).tolist()
+        self.epoch += 1
+
+
+class LengthBucketSampler(Sampler[list[int]]):
+    """A ``batch_sampler`` of batches with similar window lengths
+    (:func:`dancedata.batching.bucket_batches`): every index once per epoch, max − min length
+    within a batch ≤ ``max_spread`` frames when given, batch order shuffled from
+    ``default_rng([seed, epoch])``. The epoch advances after each full pass (or set_epoch)."""
+
+    def __init__(
+        self,
+        lengths: Sequence[int] | np.ndarray,
+        batch_size: int,
+        *,
+        seed: int = 0,
+        max_spread: int | None = None,
+        shuffle: bool = True,
+        drop_last: bool = False,
+        epoch: int = 0,
+    ) -> None:
+        self.lengths = np.asarray(lengths, dtype=np.int64)
+        self.batch_size, self.seed, self.max_spread = batch_size, int(seed), max_spread
+        self.shuffle, self.drop_last, self.epoch = shuffle, drop_last, int(epoch)
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = int(epoch)
+
+    def batches(self, epoch: int | None = None) -> list[np.ndarray]:
+        """The batches of ``epoch`` (default: the current one) without advancing."""
+        return bucket_batches(
+            self.lengths,
+            self.batch_size,
+            seed=self.seed,
+            epoch=self.epoch if epoch is None else epoch,
+            max_spread=self.max_spread,
+            shuffle=self.shuffle,
+            drop_last=self.drop_last,
+        )
+
+    def __len__(self) -> int:
+        return len(self.batches())
+
+    def __iter__(self) -> Iterator[list[int]]:
+        for batch in self.batches():  # the epoch advances once a pass is read to its end
+            yield batch.tolist()
+        self.epoch += 1
+
+
+def training_loader(
+    dataset: Any,
+    batch_size: int,
+    *,
+    seed: int = 0,
+    bucket: bool = False,
+    max_spread: int | None = None,
+    num_workers: int = 0,
+    drop_last: bool = False,
+    collate_fn: Any = None,
+    **loader_kwargs: Any,
+) -> DataLoader:
+    """A DataLoader over a window dataset with padding collate and a seeded order: a plain
+    seeded shuffle, or length buckets with ``bucket=True``. Extra keywords go to DataLoader
+    (e.g. ``persistent_workers=True``, ``pin_memory=True``)."""
+    collate = pad_collate if collate_fn is None else collate_fn
+    if num_workers > 0:
+        loader_kwargs.setdefault("persistent_workers", True)
+    if bucket:
+        sampler = LengthBucketSampler(
+            dataset.lengths, batch_size, seed=seed, max_spread=max_spread, drop_last=drop_last
+        )
+        return DataLoader(
+            dataset,
+            batch_sampler=sampler,
+            collate_fn=collate,
+            num_workers=num_workers,
+            **loader_kwargs,
+        )
+    return DataLoader(
+        dataset,
+        batch_size=batch_size,
+        sampler=SeededShuffleSampler(len(dataset), seed),
+        collate_fn=collate,
+        num_workers=num_workers,
+        drop_last=drop_last,
+        **loader_kwargs,
+    )

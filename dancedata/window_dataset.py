@@ -1,0 +1,203 @@
+"""Windows of a store as numpy items: the engine behind the torch datasets, without torch.
+
+A :class:`WindowSource` holds only small things (the store path, the window spans, the
+options), so it pickles in a few kilobytes: a data-loader worker started by ``spawn`` gets a
+copy that opens the store itself, on its first item; one started by ``fork`` inherits whatever
+the parent already loaded (zarr resets its event loop after a fork). Views are read through the
+loader's whole-array cache (:meth:`DanceStore._full`), so after the first item of a process a
+window costs a few numpy slices.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dancedata.errors import InputError, StoreError
+from dancedata.loader import VIEWS, DanceStore
+from dancedata.window_fit import FIT_MODES, ColumnPart, column_plan, fit_window
+from dancedata.window_spans import WindowSpans, measure_spans, second_spans
+
+
+class _ViewRows:
+    """One view of one store, flattened to (frames, width) parts for fast slicing."""
+
+    def __init__(self, store: DanceStore, view: str) -> None:
+        from dancedata.windows import MeasureWindows
+
+        self.parts = MeasureWindows._parts(store, view)
+        widths = [6 if p is None else p.shape[1] for p in self.parts]
+        self.plan = column_plan(VIEWS[view], widths)
+
+    def rows(self, start: int, stop: int) -> np.ndarray:
+        return np.concatenate(
+            [
+                np.zeros((stop - start, 6), np.float32) if p is None else p[start:stop]
+                for p in self.parts
+            ],
+            axis=1,
+        )
+
+
+class WindowSource:
+    """Windows of ``split`` as dicts of numpy arrays (see :meth:`item`).
+
+    ``kind="measures"`` takes ``n_measures`` / ``hop_measures``; ``kind="seconds"`` takes
+    ``seconds`` / ``hop_seconds`` (:mod:`dancedata.window_spans`). ``window_frames`` with
+    ``fit`` makes every item that many frames (:mod:`dancedata.window_fit`)."""
+
+    def __init__(
+        self,
+        store: str | Path | DanceStore,
+        split: str | None = None,
+        scheme: str = "crossmodal",
+        motion: str | None = "fact_motion_225",
+        audio: str | None = "fact_audio_35",
+        version: str | None = None,
+        *,
+        kind: str = "measures",
+        n_measures: int = 1,
+        hop_measures: int | None = None,
+        seconds: float = 4.0,
+        hop_seconds: float | None = None,
+        window_frames: int | None = None,
+        fit: str = "resample",
+    ) -> None:
+        for view in (motion, audio):
+            if view is not None and view not in VIEWS:
+                raise StoreError(f"unknown view {view!r}; known: {sorted(VIEWS)}")
+        if motion is None and audio is None:
+            raise InputError("a window dataset needs a motion view, an audio view or both")
+        if fit not in FIT_MODES:
+            raise InputError(f"fit must be one of {', '.join(FIT_MODES)} (got {fit!r})")
+        if window_frames is not None and window_frames < 1:
+            raise InputError(f"window_frames must be ≥ 1 (got {window_frames})")
+        opened = store if isinstance(store, DanceStore) else DanceStore(store, version)
+        self.path = opened.path
+        self.version = opened.version
+        self.split, self.scheme = split, scheme
+        self.motion_view, self.audio_view = motion, audio
+        self.window_frames, self.fit = window_frames, fit
+        for view in (motion, audio):
+            if view is not None:
+                opened._require_view_arrays(view)
+        if kind == "measures":
+            self.spans: WindowSpans = measure_spans(
+                opened, split, scheme, audio is not None, n_measures, hop_measures
+            )
+        elif kind == "seconds":
+            self.spans = second_spans(
+                opened, split, scheme, audio is not None, seconds, hop_seconds
+            )
+        else:
+            raise InputError(f"kind must be 'measures' or 'seconds' (got {kind!r})")
+        if window_frames is not None and fit == "pad" and len(self.spans):
+            longest = int(self.spans.length.max())
+            if longest > window_frames:
+                i = int(self.spans.length.argmax())
+                raise InputError(
+                    f"fit='pad' never drops frames, but window {i} ({self.spans.seq_ids[i]}, "
+                    f"frame {int(self.spans.frame_start[i])}) has {longest} frames > "
+                    f"window_frames={window_frames}; use fit='crop' or 'resample', or "
+                    f"window_frames ≥ {longest}"
+                )
+        self.genres = opened.genres
+        self._store: DanceStore | None = opened
+        self._views: dict[str, _ViewRows] | None = None
+        self._offsets: dict[str, tuple[int, int]] | None = None
+
+    # -- process-local state (dropped when pickled, rebuilt on first use) ----------------------
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state.update(_store=None, _views=None, _offsets=None)
+        return state
+
+    @property
+    def store(self) -> DanceStore:
+        """The store, opened in this process on first use."""
+        if self._store is None:
+            self._store = DanceStore(self.path, self.version)
+        return self._store
+
+    def _ensure_views(self) -> tuple[dict[str, _ViewRows], dict[str, tuple[int, int]]]:
+        if self._views is None or self._offsets is None:
+            store = self.store
+            views = {}
+            if self.motion_view:
+                views["motion"] = _ViewRows(store, self.motion_view)
+            if self.audio_view:
+                views["audio"] = _ViewRows(store, self.audio_view)
+            offsets = {}
+            for seq_id in set(self.spans.seq_ids):
+                row = store.sequence(seq_id)
+                audio0 = 0
+                if self.audio_view:
+                    track = store._music_rows[row["music_id"]]
+                    audio0 = int(track["frame_start"]) + int(row["audio_offset"])
+                offsets[seq_id] = (int(row["frame_start"]), audio0)
+            self._views, self._offsets = views, offsets
+        return self._views, self._offsets
+
+    # -- windows -------------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.spans)
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """(N,) int64 frames of each window as stored (before ``window_frames``)."""
+        return self.spans.length
+
+    @property
+    def resampling(self) -> dict[str, list[ColumnPart]]:
+        """Per view, which columns are resampled how (used with ``fit="resample"``)."""
+        views, _ = self._ensure_views()
+        return {name: rows.plan for name, rows in views.items()}
+
+    def raw(self, i: int) -> dict[str, np.ndarray]:
+        """Window ``i``'s view rows as stored: {"motion": (L, D), "audio": (L, D')}."""
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"window {i} out of range (0..{len(self) - 1})")
+        i = i % len(self)
+        views, offsets = self._ensure_views()
+        seq_id = self.spans.seq_ids[i]
+        start, length = int(self.spans.frame_start[i]), int(self.spans.length[i])
+        motion0, audio0 = offsets[seq_id]
+        out = {}
+        if "motion" in views:
+            out["motion"] = views["motion"].rows(motion0 + start, motion0 + start + length)
+        if "audio" in views:
+            out["audio"] = views["audio"].rows(audio0 + start, audio0 + start + length)
+        return out
+
+    def genre_onehot(self, seq_id: str) -> np.ndarray:
+        out = np.zeros(len(self.genres), dtype=np.float32)
+        genre = self.store.sequence(seq_id).get("genre")
+        if genre in self.genres:
+            out[self.genres.index(genre)] = 1.0
+        return out
+
+    def item(self, i: int) -> dict[str, Any]:
+        """Window ``i``: seq_id, measure (first; −1 for second windows), frame_start (on the
+        sequence's frame axis), length (real frames in the item), genre (G,), motion and/or
+        audio (frames, D) float32; with ``window_frames``, also mask (W,) bool."""
+        arrays = self.raw(i)
+        i = i % len(self)
+        seq_id = self.spans.seq_ids[i]
+        item: dict[str, Any] = {
+            "seq_id": seq_id,
+            "measure": int(self.spans.measure[i]),
+            "frame_start": int(self.spans.frame_start[i]),
+            "length": int(self.spans.length[i]),
+            "genre": self.genre_onehot(seq_id),
+        }
+        if self.window_frames is None:
+            item.update(arrays)
+            return item
+        views, _ = self._ensure_views()
+        for name, rows in arrays.items():
+            item[name], kept = fit_window(rows, views[name].plan, self.window_frames, self.fit)
+        item["length"] = kept
+        item["mask"] = np.arange(self.window_frames) < kept
+        return item

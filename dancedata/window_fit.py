@@ -1,0 +1,144 @@
+"""Bring a variable-length window to a fixed number of frames: resample, crop or pad.
+
+``fit`` (the ``fit=`` option of the datasets in :mod:`dancedata.torch_data`):
+
+* ``"resample"`` — every window becomes ``window_frames`` frames spanning the same time: output
+  frame ``j`` sits at source frame ``j · (L − 1) / (W − 1)`` (first and last frames kept,
+  "align corners"), so a one-measure window gets a fixed number of frames per measure whatever
+  the tempo. Each part of the view is resampled by the method its data needs
+  (:data:`PART_RESAMPLERS`, recorded as ``dataset.resampling``):
+
+  - ``slerp``: ``motion/rotmat`` — per joint, matrices → unit quaternions, spherical linear
+    interpolation along the shorter arc between the two neighbouring frames, → matrices;
+  - ``linear``: ``motion/trans`` (metres), audio features (``onset_env``, ``mfcc``,
+    ``chroma_cens``, per-stem ones) and ``motion/euler``. Euler angles are interpolated per
+    angle on the stored values (which featurize keeps continuous in time), not on the rotation
+    group: between neighbouring frames at 60 fps this is within a small fraction of a degree of
+    SLERP, but not equal to it, and wrong across a 2π jump;
+  - ``event``: 0/1 event columns (``onset_peaks``, ``beats``) — each event moves to the
+    nearest output frame ``round(i · (W − 1) / (L − 1))`` (the count is kept unless two events
+    land on one frame), instead of being smeared by interpolation;
+  - ``zeros``: FACT's six zero columns stay zero.
+
+* ``"crop"`` — the first ``window_frames`` frames (a measure window starts on its downbeat);
+  shorter windows are zero-padded at the end and their ``mask`` marks the real frames.
+* ``"pad"`` — windows are zero-padded at the end to ``window_frames``; no frame is ever
+  dropped, so a window longer than ``window_frames`` is an error (raised when the dataset is
+  made, naming the longest window).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dancedata.compute.resample import resample_linear, resample_quaternions
+from dancedata.compute.rotations import quat_to_rotmat, rotmat_to_quat
+from dancedata.errors import InputError
+
+FIT_MODES = ("resample", "crop", "pad")
+EVENT_ARRAYS = ("onset_peaks", "beats")
+PART_RESAMPLERS = {
+    "zeros6": "zeros",
+    "motion/rotmat": "slerp",
+    "motion/trans": "linear",
+    "motion/euler": "linear",
+    "audio/*onset_peaks, audio/*beats": "event",
+    "audio/* (other)": "linear",
+}
+
+
+@dataclass(frozen=True)
+class ColumnPart:
+    """Columns ``[start, stop)`` of a view hold ``name``, resampled by ``method``."""
+
+    name: str
+    start: int
+    stop: int
+    method: str
+
+
+def part_method(kind: str, array: str) -> str:
+    """The resampler of one view part (see :data:`PART_RESAMPLERS`)."""
+    if kind == "zeros6":
+        return "zeros"
+    if kind == "motion":
+        return "slerp" if array == "rotmat" else "linear"
+    return "event" if array.rsplit("/", 1)[-1] in EVENT_ARRAYS else "linear"
+
+
+def column_plan(parts: list[tuple[str, str]], widths: list[int]) -> list[ColumnPart]:
+    """The column plan of a view given its parts (``loader.VIEWS[view]``) and their widths."""
+    plan: list[ColumnPart] = []
+    at = 0
+    for (kind, array), width in zip(parts, widths, strict=True):
+        name = "zeros6" if kind == "zeros6" else f"{kind}/{array}"
+        plan.append(ColumnPart(name, at, at + width, part_method(kind, array)))
+        at += width
+    return plan
+
+
+def resample_positions(length: int, window_frames: int) -> np.ndarray:
+    """(W,) float64 source-frame positions of the W output frames (first and last kept)."""
+    if window_frames == 1 or length == 1:
+        return np.zeros(window_frames)
+    return np.arange(window_frames) * ((length - 1) / (window_frames - 1))
+
+
+def _slerp_rotmat(values: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    n, width = values.shape
+    if width % 9:
+        raise InputError(f"rotation-matrix columns must come in 9s (got {width})")
+    quat = rotmat_to_quat(values.reshape(n, width // 9, 3, 3).astype(np.float64))
+    return quat_to_rotmat(resample_quaternions(quat, positions)).reshape(len(positions), width)
+
+
+def _events(values: np.ndarray, window_frames: int) -> np.ndarray:
+    n = values.shape[0]
+    out = np.zeros((window_frames, values.shape[1]), dtype=np.float64)
+    if n == 1:
+        target = np.zeros(1, dtype=np.int64)
+    else:
+        target = np.floor(np.arange(n) * ((window_frames - 1) / (n - 1)) + 0.5).astype(np.int64)
+    for c in range(values.shape[1]):
+        hit = values[:, c] != 0
+        np.maximum.at(out[:, c], target[hit], values[hit, c])
+    return out
+
+
+def resample_window(x: np.ndarray, plan: list[ColumnPart], window_frames: int) -> np.ndarray:
+    """(L, D) view rows → (W, D) float32, each part by its method."""
+    positions = resample_positions(x.shape[0], window_frames)
+    out = np.zeros((window_frames, x.shape[1]), dtype=np.float32)
+    for part in plan:
+        values = x[:, part.start : part.stop]
+        if part.method == "zeros":
+            continue
+        if part.method == "slerp":
+            out[:, part.start : part.stop] = _slerp_rotmat(values, positions)
+        elif part.method == "event":
+            out[:, part.start : part.stop] = _events(values, window_frames)
+        else:
+            out[:, part.start : part.stop] = resample_linear(values, positions)
+    return out
+
+
+def fit_window(
+    x: np.ndarray, plan: list[ColumnPart], window_frames: int, fit: str
+) -> tuple[np.ndarray, int]:
+    """(L, D) → ((W, D) float32, number of real frames at the start of it)."""
+    if fit not in FIT_MODES:
+        raise InputError(f"fit must be one of {', '.join(FIT_MODES)} (got {fit!r})")
+    length = x.shape[0]
+    if fit == "resample":
+        return resample_window(x, plan, window_frames), window_frames
+    if length > window_frames and fit == "pad":
+        raise InputError(
+            f"fit='pad' never drops frames, but this window has {length} > window_frames="
+            f"{window_frames} (use fit='crop' or 'resample')"
+        )
+    kept = min(length, window_frames)
+    out = np.zeros((window_frames, x.shape[1]), dtype=np.float32)
+    out[:kept] = x[:kept]
+    return out, kept
