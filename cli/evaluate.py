@@ -52,8 +52,19 @@ def evaluate_command(
         bool, typer.Option(help="Wrap Euler angle differences to (−π, π] in the MSE.")
     ] = False,
     mse_reduce: Annotated[
-        str, typer.Option(help="MSE reduction over sequences: pooled or sequence_mean.")
+        str,
+        typer.Option(
+            help="MSE reduction: pooled or sequence_mean (units: sequences), or measure_mean "
+            "(units: the complete measures of the measures table)."
+        ),
     ] = "pooled",
+    fid_unit: Annotated[
+        str,
+        typer.Option(
+            help="FID / diversity unit: sequence (one feature vector each) or measure (each "
+            "complete measure of the measures table)."
+        ),
+    ] = "sequence",
     kinetic_mode: Annotated[
         str, typer.Option(help="Kinetic features: parity (AIST++ code) or corrected.")
     ] = "parity",
@@ -129,6 +140,7 @@ def evaluate_command(
         mse_space=mse_space,
         mse_wrap=mse_wrap,
         mse_reduce=mse_reduce,
+        fid_unit=fid_unit,
         kinetic_mode=kinetic_mode,
         normalize=normalize,
         drop_constant_ref_columns=drop_constant_ref_columns,

@@ -496,3 +496,59 @@ def test_edge_layout_z_up_30_fps_prefixed_names(
         values[axis] = {r["metric"]: r["value"] for r in record["results"]}
     assert values["z"]["mse"] < 0.01 * values["y"]["mse"], (values["z"]["mse"], values["y"]["mse"])
     assert values["z"]["fpd"] < 0.01 * values["y"]["fpd"]
+
+
+def test_measure_units_for_fid_and_mse(store: Path, model_path: Path, tmp_path: Path) -> None:
+    """--fid-unit measure / --mse-reduce measure_mean: one unit per complete measure of the
+    measures table, numbers equal to direct calls on those units."""
+    motion = noisy_motion(store, seed=2)
+    gen = tmp_path / "gen"
+    gen.mkdir()
+    for seq, (aa, trans) in motion.items():
+        (gen / f"{seq}.pkl").write_bytes(
+            pickle.dumps({"smpl_poses": aa.reshape(len(aa), 72), "smpl_trans": trans})
+        )
+    out = tmp_path / "res"
+    run_cli(
+        "evaluate",
+        str(store),
+        "--generated",
+        str(gen),
+        *SPLIT,
+        "--smpl-model",
+        str(model_path),
+        "--fid-unit",
+        "measure",
+        "--mse-reduce",
+        "measure_mean",
+        "--out",
+        str(out),
+    )
+    by_metric = {r["metric"]: r for r in json.loads((out / "results.json").read_text())["results"]}
+    s = dancedata.open_store(store)
+    model = load_smpl_model(model_path)
+    from dancedata.compute.rotations import axis_angle_to_euler
+
+    gt_units, gen_units, truth, recon = [], [], [], []
+    for seq in sorted(motion, key=s.seq_ids().index):
+        gt_pos = smpl_joint_positions(model, s.motion(seq, "axis_angle"), s.motion(seq, "trans"))
+        gen_pos = smpl_joint_positions(model, *motion[seq])
+        rows_gen = np.concatenate(
+            [motion[seq][1], axis_angle_to_euler(motion[seq][0], "XYZ").reshape(-1, 72)], 1
+        )
+        rows_gt = s.view(seq, "thesis_euler_75")
+        for m in s.measures.to_pylist():
+            if m["seq_id"] == seq:
+                a, b = m["frame_start"], m["frame_stop"]
+                gt_units.append(gt_pos[a:b])
+                gen_units.append(gen_pos[a:b])
+                truth.append(rows_gt[a:b])
+                recon.append(rows_gen[a:b])
+    assert by_metric["fid_k"]["n_units"] == len(gt_units) > 3
+    assert by_metric["fid_k"]["convention"]["unit"] == "measure"
+    assert by_metric["fid_k"]["value"] == pytest.approx(
+        fid(gen_units, gt_units, "kinetic").value, rel=1e-6
+    )
+    direct = mse(truth, recon, reduce="measure_mean")
+    assert by_metric["mse"]["value"] == pytest.approx(direct.value, rel=1e-5)
+    assert by_metric["mse"]["n_units"] == len(truth)

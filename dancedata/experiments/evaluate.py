@@ -9,10 +9,12 @@ mean. Every [CHOICE] of EXPERIMENTS.md §4 that affects a number is a field of
 
 Metrics and what they need (both sides):
 
-* ``mse``: MSE rows (rotations); unit = the sequence's shared frames.
+* ``mse``: MSE rows (rotations); unit = the sequence's shared frames, or each complete measure
+  (``mse_reduce = "measure_mean"``).
 * ``fid_k``, ``fid_g``, ``div_k``, ``div_g``, ``div_k_gt``, ``div_g_gt``: SMPL-24 positions;
-  one feature vector per sequence (``fid_unit = "sequence"``), reference = the ground truth of
-  the same sequences (``fid_reference = "paired_gt"``); at least 2 sequences.
+  one feature vector per sequence (``fid_unit = "sequence"``) or per complete measure
+  (``"measure"``), reference = the ground truth of the same units
+  (``fid_reference = "paired_gt"``); at least 2 units.
 * ``bas_mint``, ``bas_bailando``, ``bas_msd_motion2music``, ``bas_msd_music2motion``,
   ``beat_coverage``, ``beat_hit_rate``, ``beat_accuracy``: generated positions + the music
   beats; per-sequence values averaged over sequences.
@@ -104,8 +106,8 @@ class EvaluateParams:
     def __post_init__(self) -> None:
         allowed = {
             "mse_space": ("euler75", "euler72", "rotmat"),
-            "mse_reduce": ("pooled", "sequence_mean"),  # units here are whole sequences
-            "fid_unit": ("sequence",),
+            "mse_reduce": ("pooled", "sequence_mean", "measure_mean"),
+            "fid_unit": ("sequence", "measure"),
             "fid_reference": ("paired_gt",),
             "kinetic_mode": ("parity", "corrected"),
             "beat_detector": ("mint", "bailando"),
@@ -142,6 +144,9 @@ class EvalSequence:
         gt_rows, gen_rows: (F, D) rows in the MSE space; or None.
         gt_axis_angle, gen_axis_angle: (F, 24, 3) axis-angle, rad; or None.
         music_beats: music-beat frame indices in the used frames' time base; or None.
+        measures: [start, stop) of every complete measure inside the used frames (the
+            store's measures table, same time base); the units of ``fid_unit = "measure"``
+            and ``mse_reduce = "measure_mean"``.
         missing: why a side lacks something (e.g. ``{"positions": "no --smpl-model"}``).
     """
 
@@ -155,6 +160,7 @@ class EvalSequence:
     gt_axis_angle: np.ndarray | None = None
     gen_axis_angle: np.ndarray | None = None
     music_beats: np.ndarray | None = None
+    measures: tuple[tuple[int, int], ...] = ()
     missing: dict[str, str] = field(default_factory=dict)
 
 
@@ -192,10 +198,18 @@ def _with_unscored(result: MetricResult, params: EvaluateParams) -> MetricResult
     )
 
 
+def _units(seqs: list[EvalSequence], attr: str, by_measure: bool) -> list[np.ndarray]:
+    """Each sequence's array whole, or cut into its complete measures."""
+    if not by_measure:
+        return [getattr(s, attr) for s in seqs]
+    return [getattr(s, attr)[a:b] for s in seqs for a, b in s.measures]
+
+
 def _feature_metrics(seqs: list[EvalSequence], p: EvaluateParams, out: list[MetricResult]) -> None:
-    gen = [s.gen_positions for s in seqs]
-    gt = [s.gt_positions for s in seqs]
-    frames = sum(s.n_frames for s in seqs)
+    by_measure = p.fid_unit == "measure"
+    gen = _units(seqs, "gen_positions", by_measure)
+    gt = _units(seqs, "gt_positions", by_measure)
+    frames = sum(len(u) for u in gen)
     unit = {"unit": p.fid_unit, "reference": p.fid_reference}
     for kind, suffix in (("kinetic", "k"), ("geometric", "g")):
         result = fid(
@@ -384,6 +398,7 @@ def evaluate_sequences(
     skipped: dict[str, str] = {}
     out: list[MetricResult] = []
 
+    by_measure_mse = params.mse_reduce == "measure_mean"
     rows = _needs(
         seqs,
         ["mse"],
@@ -391,17 +406,20 @@ def evaluate_sequences(
         lambda s: s.gt_rows is not None and s.gen_rows is not None,
         unscored,
     )
+    if by_measure_mse:
+        rows = _needs(rows, ["mse"], "measures", lambda s: bool(s.measures), unscored)
     if rows:
         out.append(
             mse(
-                [s.gt_rows for s in rows],
-                [s.gen_rows for s in rows],  # type: ignore[misc]
-                space=p_space(params),
-                wrap=params.mse_wrap,  # type: ignore[arg-type]
-                reduce=params.mse_reduce,
+                _units(rows, "gt_rows", by_measure_mse),
+                _units(rows, "gen_rows", by_measure_mse),
+                space=params.mse_space,  # type: ignore[arg-type]
+                wrap=params.mse_wrap,
+                reduce=params.mse_reduce,  # type: ignore[arg-type]
                 groups=[s.seq_id for s in rows],
-            )  # type: ignore[arg-type]
+            )
         )
+        out[-1].convention["unit"] = "measure" if by_measure_mse else "sequence"
     else:
         skipped["mse"] = "no sequence with rotations on both sides"
 
@@ -412,11 +430,18 @@ def evaluate_sequences(
         lambda s: s.gt_positions is not None and s.gen_positions is not None,
         unscored,
     )
-    if len(positions) >= 2:
+    if params.fid_unit == "measure":
+        positions = _needs(
+            positions, _FEATURE_METRICS, "measures", lambda s: bool(s.measures), unscored
+        )
+    n_units = len(_units(positions, "gt_positions", params.fid_unit == "measure"))
+    if n_units >= 2:
         _feature_metrics(positions, params, out)
     else:
         for name in _FEATURE_METRICS:
-            skipped[name] = f"needs joint positions of at least 2 sequences, have {len(positions)}"
+            skipped[name] = (
+                f"needs joint positions of at least 2 units ({params.fid_unit}s), have {n_units}"
+            )
 
     beats = _needs(
         [s for s in seqs if s.gen_positions is not None],
@@ -451,8 +476,3 @@ def evaluate_sequences(
     out.sort(key=lambda r: METRICS.index(r.name))
     results = [_with_unscored(r, params) for r in out]
     return Evaluation(results, unscored, skipped)
-
-
-def p_space(params: EvaluateParams) -> str:
-    """The MSE space (``euler75``, ``euler72`` or ``rotmat``)."""
-    return params.mse_space

@@ -218,6 +218,7 @@ def _pair(
     beats: np.ndarray | None,
     beats_missing: str | None,
     params: EvaluateParams,
+    measures: list[tuple[int, int]] | None = None,
 ) -> tuple[EvalSequence, dict[str, Any]]:
     """Both sides cropped to [skip, min(F_gt, F_gen)); raises InputError when too short."""
     missing = dict(gt_missing)
@@ -254,6 +255,13 @@ def _pair(
         music = beats[(beats >= skip) & (beats < stop)] - skip
     elif beats_missing:
         missing["music_beats"] = beats_missing
+    if measures is None:
+        missing["measures"] = "the store has no measures table (run dancedata segment)"
+        inside: tuple[tuple[int, int], ...] = ()
+    else:
+        inside = tuple((a - skip, b - skip) for a, b in measures if a >= skip and b <= stop)
+        if not inside:
+            missing["measures"] = "no complete measure inside the compared frames"
     seq = EvalSequence(
         seq_id=seq_id,
         music_id=music_id,
@@ -265,6 +273,7 @@ def _pair(
         gt_axis_angle=gt["axis_angle"][cut],
         gen_axis_angle=gen_aa,
         music_beats=music,
+        measures=inside,
         missing=missing,
     )
     info = {
@@ -403,6 +412,11 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
             "sha256": sha256_file(options.smpl_model),
         }
 
+    measures: dict[str, list[tuple[int, int]]] | None = None
+    if store._reader.has_table("measures"):
+        measures = {}
+        for m in store.measures.select(["seq_id", "frame_start", "frame_stop"]).to_pylist():
+            measures.setdefault(m["seq_id"], []).append((m["frame_start"], m["frame_stop"]))
     seqs: list[EvalSequence] = []
     unreadable: list[dict[str, str]] = []
     sequences_info: list[dict[str, Any]] = []
@@ -433,6 +447,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
                 beats,
                 beats_missing,
                 params,
+                None if measures is None else measures.get(seq_id, []),
             )
         except (DancedataError, ValueError) as exc:
             unreadable.append({"seq_id": seq_id, "reason": str(exc)})
