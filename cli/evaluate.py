@@ -91,6 +91,12 @@ def evaluate_command(
     fpd_aggregate: Annotated[
         str, typer.Option(help="FPD/FMD over music pieces: per_piece_mean or pooled.")
     ] = "per_piece_mean",
+    max_frames: Annotated[
+        int | None,
+        typer.Option(
+            min=3, help="Compare at most this many frames after --skip-frames (Bailando: 1200)."
+        ),
+    ] = None,
     fid_root_relative: Annotated[
         bool,
         typer.Option(
@@ -152,6 +158,7 @@ def evaluate_command(
         fpd_parity=fpd_parity,
         fpd_aggregate=fpd_aggregate,
         skip_frames=skip_frames,
+        max_frames=max_frames,
         fid_root_relative=fid_root_relative,
     )
     options = EvaluateOptions(

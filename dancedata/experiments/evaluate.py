@@ -100,6 +100,7 @@ class EvaluateParams:
     fpd_aggregate: str = "per_piece_mean"
     fpd_frame_step: int = 3
     skip_frames: int = 0
+    max_frames: int | None = None
     length: str = "common_min"
     fid_root_relative: bool = False
 
@@ -123,6 +124,8 @@ class EvaluateParams:
                 )
         if self.mse_wrap and self.mse_space == "rotmat":
             raise InputError("mse_wrap applies to Euler spaces only, not to rotmat")
+        if self.max_frames is not None and self.max_frames < 3:
+            raise InputError(f"max_frames must be at least 3, got {self.max_frames}")
         if self.skip_frames < 0 or self.beat_tol < 0 or self.fpd_frame_step < 1:
             raise InputError("skip_frames and beat_tol must be ≥ 0, fpd_frame_step ≥ 1")
         step = self.fps / self.msd_fps if self.msd_fps > 0 else 0.0
@@ -192,7 +195,12 @@ def _needs(
 
 
 def _with_unscored(result: MetricResult, params: EvaluateParams) -> MetricResult:
-    convention = {**result.convention, "skip_frames": params.skip_frames, "length": params.length}
+    convention = {
+        **result.convention,
+        "skip_frames": params.skip_frames,
+        "max_frames": params.max_frames,
+        "length": params.length,
+    }
     return MetricResult(
         result.name, result.value, convention, result.n_units, result.n_frames, result.details
     )

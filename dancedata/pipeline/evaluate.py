@@ -229,6 +229,8 @@ def _pair(
     gt_frames = len(gt["axis_angle"])
     skip = params.skip_frames
     stop = min(gt_frames, gen_frames)
+    if params.max_frames is not None:
+        stop = min(stop, skip + params.max_frames)
     if stop - skip < 3:
         raise InputError(
             f"{stop - skip} frames to compare after skipping {skip} (ground truth {gt_frames}, "
