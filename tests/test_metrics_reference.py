@@ -20,6 +20,8 @@ from dancedata.experiments.metrics import (
     bas_mint,
     diversity,
     fid,
+    fmd,
+    fpd,
     frechet_distance,
     motion_feature_matrix,
 )
@@ -162,6 +164,29 @@ def ref_bailando_calculate_avg_distance(feature_list):
     return dist
 
 
+def ref_transflower_moments(features, stat):
+    """guillefix/transflower-lightning feature_extraction/extract_transform.py, transforms
+    ``2moments`` and ``2moments_ext`` (features = all files' frames concatenated)."""
+    if stat == "2moments":
+        C = np.dot(features.T, features) / features.shape[0]  # noqa: N806 (their name)
+        m = np.mean(features, 0)
+        return m, C
+    if features.shape[0] % 3 != 0:
+        features = features[: -(features.shape[0] % 3)]
+    features = np.reshape(features, (-1, 3 * features.shape[1]))
+    C = np.dot(features.T, features) / features.shape[0]  # noqa: N806
+    m = np.mean(features, 0)
+    return m, C
+
+
+def ref_transflower_fid(m, C, mg, Cg):  # noqa: N803 (their names)
+    """transflower-lightning analysis/sandbox_fid.py ``FID`` (its result can be complex when
+    sqrtm is; the real part is compared)."""
+    mean_diff = np.sum((m - mg) ** 2)
+    covar_diff = np.trace(C) + np.trace(Cg) - 2 * np.trace(linalg.sqrtm(np.dot(C, Cg)))
+    return np.real(mean_diff + covar_diff)
+
+
 # ---------------------------------------------------------------------------------- inputs
 
 
@@ -255,3 +280,17 @@ def test_fid_matches_mint_and_bailando_code(n_units: int) -> None:
         list(motion_feature_matrix(real, "kinetic")), list(motion_feature_matrix(gen, "kinetic"))
     )
     assert abs(full - mint_full) < 1e-6 * max(1.0, abs(mint_full))
+
+
+def test_fpd_fmd_transflower_parity_matches_transflower_code() -> None:
+    rng = np.random.default_rng(7)
+    real = [rng.normal(scale=0.4, size=(n, 6, 3)) for n in (301, 250, 199)]
+    gen = [r[: len(r) - 7] * 1.2 + 0.05 for r in real]
+    pooled_real = np.concatenate([r.reshape(len(r), -1) for r in real])
+    pooled_gen = np.concatenate([g.reshape(len(g), -1) for g in gen])
+    for stat, ours in (("2moments", fpd), ("2moments_ext", fmd)):
+        ref = ref_transflower_fid(
+            *ref_transflower_moments(pooled_gen, stat), *ref_transflower_moments(pooled_real, stat)
+        )
+        value = ours(gen, real, frame_step=1, parity="transflower").value
+        assert abs(value - ref) < 1e-6 * max(1.0, abs(ref)), (stat, value, ref)
