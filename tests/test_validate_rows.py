@@ -182,3 +182,14 @@ def test_version_folder_without_manifest_is_reported(store):
     path.unlink()
     problems = validate_store(store)
     assert f"{path}: missing (a damaged or half-restored version)" in problems
+
+
+def test_scan_reads_stay_within_the_byte_budget(tmp_path):
+    """A keypoints2d-sized chunk (8192 × 9 × 17 × 3 float32, 15 MB) is read two at a time."""
+    from dancedata.store.validate import _SCAN_BYTES, scan_chunks
+
+    group = zarr.open_group(tmp_path / "a.zarr", mode="w", zarr_format=3)
+    wide = FrameArrayWriter(group, "wide", (9, 17, 3), np.float32).array
+    narrow = FrameArrayWriter(group, "narrow", (3,), np.float32).array
+    assert scan_chunks(wide) == 2 and _SCAN_BYTES >= 2 * 8192 * 9 * 17 * 3 * 4
+    assert scan_chunks(narrow) == 4

@@ -345,8 +345,10 @@ def _check_arrays(
     return problems
 
 
-# Chunks read per call in the finiteness scan: zarr decodes them on parallel threads.
+# The finiteness scan reads up to this many chunks per call (zarr decodes them on parallel
+# threads), and no more than _SCAN_BYTES of decoded values: memory stays bounded by that.
 _SCAN_CHUNKS = 4
+_SCAN_BYTES = 32 << 20
 
 
 def nan_allowed(attrs: Any) -> bool:
@@ -355,11 +357,20 @@ def nan_allowed(attrs: Any) -> bool:
     return isinstance(missing, str) and "nan" in missing.lower()
 
 
-def nonfinite_rows(array: Any, *, allow_nan: bool, chunks: int = _SCAN_CHUNKS) -> tuple[int, int]:
+def scan_chunks(array: Any) -> int:
+    """Chunks per read for :func:`nonfinite_rows`: up to _SCAN_CHUNKS, within _SCAN_BYTES."""
+    rows = int(array.chunks[0]) if array.ndim else 1
+    row_bytes = int(np.prod(array.shape[1:], dtype=np.int64)) * np.dtype(array.dtype).itemsize
+    return int(max(1, min(_SCAN_CHUNKS, _SCAN_BYTES // max(1, rows * row_bytes))))
+
+
+def nonfinite_rows(array: Any, *, allow_nan: bool, chunks: int | None = None) -> tuple[int, int]:
     """(rows holding a value that is not allowed, first such row) over every row of a float
-    array, read ``chunks`` chunks along axis 0 at a time (bounded memory). Not allowed: NaN and
-    ±Inf, or only ±Inf when ``allow_nan``. (0, -1) when every row is clean."""
+    array, read ``chunks`` chunks along axis 0 at a time (default :func:`scan_chunks`; bounded
+    memory). Not allowed: NaN and ±Inf, or only ±Inf when ``allow_nan``. (0, -1) when every
+    row is clean."""
     n_rows = int(array.shape[0]) if array.ndim else 1
+    chunks = scan_chunks(array) if chunks is None else chunks
     step = max(1, int(array.chunks[0]) if array.ndim else 1) * chunks
     bad_rows, first = 0, -1
     for start in range(0, n_rows, step):
