@@ -552,3 +552,51 @@ def test_measure_units_for_fid_and_mse(store: Path, model_path: Path, tmp_path: 
     direct = mse(truth, recon, reduce="measure_mean")
     assert by_metric["mse"]["value"] == pytest.approx(direct.value, rel=1e-5)
     assert by_metric["mse"]["n_units"] == len(truth)
+
+
+def test_reader_refuses_oversized_claims_and_survives_corruption(tmp_path: Path) -> None:
+    """Never trust a file: headers claiming more than the file holds are refused before
+    anything is allocated, and byte-corrupted files raise InputError and nothing else."""
+    import io
+    import zipfile
+
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        header, {"descr": "<f8", "fortran_order": False, "shape": (10**6, 10**6)}
+    )
+    claim = header.getvalue() + b"\0" * 64
+    (tmp_path / "huge.npy").write_bytes(claim)
+    with pytest.raises(InputError, match="huge.npy"):
+        read_generated_motion(tmp_path / "huge.npy")
+    with zipfile.ZipFile(tmp_path / "huge.npz", "w") as archive:
+        archive.writestr("positions.npy", claim)
+    with pytest.raises(InputError, match="claims"):
+        read_generated_motion(tmp_path / "huge.npz")
+
+    rng = np.random.default_rng(0)
+    aa = rng.normal(size=(6, 24, 3))
+    originals = {}
+    np.save(tmp_path / "v.npy", fact_rows(aa, rng.normal(size=(6, 3))))
+    originals["npy"] = (tmp_path / "v.npy").read_bytes()
+    originals["pkl"] = pickle.dumps({"smpl_poses": aa.reshape(6, 72), "smpl_trans": aa[:, 0]})
+    np.savez(tmp_path / "v.npz", positions=aa)
+    originals["npz"] = (tmp_path / "v.npz").read_bytes()
+    outcomes = {"ok": 0, "refused": 0}
+    for i in range(300):
+        suffix = ("npy", "pkl", "npz")[i % 3]
+        data = bytearray(originals[suffix])
+        for _ in range(rng.integers(1, 4)):
+            data[rng.integers(0, len(data))] = rng.integers(0, 256)
+        if i % 7 == 0:
+            data = data[: rng.integers(0, len(data))]
+        path = tmp_path / f"m{i}.{suffix}"
+        path.write_bytes(bytes(data))
+        try:
+            motion = read_generated_motion(path)
+        except InputError as exc:
+            assert path.name in str(exc)
+            outcomes["refused"] += 1
+        else:
+            assert motion.n_frames >= 2
+            outcomes["ok"] += 1
+    assert outcomes["refused"] > 0 and outcomes["ok"] > 0, outcomes

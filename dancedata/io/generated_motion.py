@@ -82,16 +82,54 @@ def find_generated_file(folder: Path, seq_id: str) -> Path | None:
     return prefixed[0] if prefixed else None
 
 
+MAX_MEMBER_BYTES = 1 << 30  # one array of an .npz: far above any motion clip
+
+
+def _check_npz_members(path: Path) -> None:
+    """Refuse an .npz whose members claim more data than they hold, or more than
+    :data:`MAX_MEMBER_BYTES`, before numpy allocates anything (numpy allocates the claimed
+    shape first, then reads)."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            if info.file_size > MAX_MEMBER_BYTES:
+                raise InputError(
+                    f"member {info.filename} unpacks to {info.file_size} bytes "
+                    f"(at most {MAX_MEMBER_BYTES} are read)",
+                    path,
+                )
+            with archive.open(info) as member:
+                version = np.lib.format.read_magic(member)
+                read_header = (
+                    np.lib.format.read_array_header_1_0
+                    if version == (1, 0)
+                    else np.lib.format.read_array_header_2_0
+                )
+                shape, _, dtype = read_header(member)
+                claimed = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                if claimed > info.file_size:
+                    raise InputError(
+                        f"member {info.filename} claims {shape} {dtype} but holds "
+                        f"{info.file_size} bytes",
+                        path,
+                    )
+
+
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     suffix = path.suffix.lower()
     try:
-        if suffix == ".npy":
-            return {"array": np.load(path, allow_pickle=False)}
+        if suffix == ".npy":  # mmap checks the claimed shape against the file's size
+            return {"array": np.array(np.load(path, mmap_mode="r", allow_pickle=False))}
         if suffix == ".npz":
+            _check_npz_members(path)
             with np.load(path, allow_pickle=False) as npz:
                 return {k: np.asarray(npz[k]) for k in npz.files}
-    except (OSError, ValueError, EOFError) as exc:
-        raise InputError(f"cannot read as a numpy file ({str(exc)[:200]})", path) from None
+    except InputError:
+        raise
+    except Exception as exc:  # OSError, ValueError, EOFError, MemoryError, BadZipFile, ...
+        reason = f"{type(exc).__name__}: {str(exc)[:200]}"
+        raise InputError(f"cannot read as a numpy file ({reason})", path) from None
     if suffix == ".pkl":
         from dancedata.safe_pickle import load_restricted
 
