@@ -20,7 +20,12 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from dancedata.batching import bucket_batches, epoch_permutation, lengths_mask
 from dancedata.errors import InputError
-from dancedata.window_fit import ColumnPart, fit_window, resample_window
+from dancedata.window_fit import (
+    ColumnPart,
+    fit_window,
+    orthonormal_rotmat_to_quat,
+    resample_window,
+)
 from dancedata.window_spans import measure_groups, sliding_starts
 
 torch = pytest.importorskip("torch")
@@ -140,6 +145,16 @@ def test_slerp_midpoints_against_scipy() -> None:
         # scipy takes the shorter arc as we do (quaternion sign chosen per pair)
         np.testing.assert_allclose(out[1::2, j], mids.as_matrix(), atol=2e-6)
         np.testing.assert_allclose(out[0::2, j], mats[:, j], atol=2e-6)
+
+
+def test_rotmat_to_quat_matches_scipy_including_half_turns() -> None:
+    rot = Rotation.random(20_000, random_state=np.random.default_rng(9))
+    half_turns = Rotation.from_rotvec(np.pi * np.vstack([np.eye(3), [[0.6, 0.8, 0.0]]]))
+    for r in (rot, half_turns):
+        q = orthonormal_rotmat_to_quat(r.as_matrix())
+        ref = r.as_quat()[:, [3, 0, 1, 2]]  # scipy is xyzw
+        sign = np.sign(np.sum(q * ref, axis=1, keepdims=True))
+        np.testing.assert_allclose(q, sign * ref, atol=1e-12)
 
 
 def test_resampled_dataset_windows_match_np_interp_and_scipy_slerp(store) -> None:

@@ -1,0 +1,165 @@
+"""Batches for training: dancedata's batching against the plain per-item loop (issue 14.1).
+
+On a featurized, segmented store (``--store``; default ``bench/out/batching-200``, a
+200-sequence synthetic AIST++ store built here when absent: ``synth aist --sequences 200
+--seed 0``, ``ingest aist``, ``featurize``, ``segment``), over the crossmodal train split's
+measure windows (fact_motion_225 + fact_audio_35), it times batches of 64 windows per second:
+
+* baseline — the plain per-item loop a training script writes when ``batch_size=8`` fails:
+  ``DataLoader(MeasureDataset(...), batch_size=1, shuffle=True)`` in one process, 64 items
+  padded into a batch by hand (``torch.nn.utils.rnn.pad_sequence``);
+* dancedata — ``training_loader(ds, 64, bucket=True, num_workers=2)`` (length buckets, padding
+  collate with mask and lengths, persistent workers), and the same with ``num_workers=0``;
+* fixed-length windows (``window_frames=128, fit="resample"``: SLERP on rotations) and 4 s
+  sliding windows with a 1 s hop (``SecondsDataset``), 2 workers.
+
+Each loader runs ``--epochs`` passes; the first includes opening the store in each worker
+(reported separately), the rate is over the later passes. The machine is shared: wall rates
+move with its load, which is printed.
+
+Usage: .venv/bin/python bench/bench_batching.py [--store PATH] [--epochs 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+HERE = Path(__file__).resolve().parent
+DEFAULT_STORE = HERE / "out" / "batching-200"
+BATCH = 64
+
+
+def build_store(path: Path, sequences: int = 200) -> None:
+    """synth aist → ingest → featurize → segment into ``path`` (skipped when it exists)."""
+    if (path / "store.json").exists():
+        return
+    from dancedata.ingest.aist import AistIngestOptions, ingest_aist
+    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
+    from dancedata.pipeline.segment import SegmentOptions, segment
+    from dancedata.synth.aist import synth_aist
+
+    print(f"building {path} ({sequences} synthetic sequences; a few minutes)", flush=True)
+    raw = path.with_name(path.name + "-raw")
+    synth_aist(raw, n_sequences=sequences, seed=0)
+    ingest_aist(path, raw, AistIngestOptions())
+    featurize(path, FeaturizeOptions(workers=2))
+    segment(path, SegmentOptions())
+
+
+def run_epochs(make_batches, epochs: int) -> tuple[float, float, int]:
+    """(first pass seconds, later passes' batches / s, windows per pass)."""
+    times, windows = [], 0
+    for _ in range(epochs):
+        start = time.perf_counter()
+        windows = sum(n for n in make_batches())
+        times.append(time.perf_counter() - start)
+    later = sum(times[1:]) or times[0]
+    passes = max(1, epochs - 1)
+    return times[0], passes * windows / BATCH / later, windows
+
+
+def baseline(store: Path, epochs: int):
+    import torch
+    from torch.nn.utils.rnn import pad_sequence
+    from torch.utils.data import DataLoader
+
+    from dancedata.torch_data import MeasureDataset
+
+    ds = MeasureDataset(store, split="train")
+    loader = DataLoader(ds, batch_size=1, shuffle=True, collate_fn=lambda items: items[0])
+    torch.manual_seed(0)
+
+    def batches():
+        pending = []
+        for item in loader:
+            pending.append(item)
+            if len(pending) == BATCH:
+                motion = pad_sequence([p["motion"] for p in pending], batch_first=True)
+                audio = pad_sequence([p["audio"] for p in pending], batch_first=True)
+                assert audio.shape[:2] == motion.shape[:2]
+                yield motion.shape[0]
+                pending = []
+        if pending:
+            yield len(pending)
+
+    return run_epochs(batches, epochs), len(ds)
+
+
+def dancedata_loader(ds, epochs: int, workers: int, bucket: bool = True):
+    from dancedata.torch_batching import training_loader
+
+    loader = training_loader(ds, BATCH, seed=0, bucket=bucket, num_workers=workers)
+
+    def batches():
+        for batch in loader:
+            yield int(batch["motion"].shape[0])
+
+    return run_epochs(batches, epochs)
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--store", type=Path, default=None)
+    parser.add_argument("--epochs", type=int, default=3)
+    args = parser.parse_args(argv)
+    store = args.store or DEFAULT_STORE
+    if args.store is None:
+        build_store(store)
+
+    import numpy as np
+    import torch
+
+    from dancedata.batching import bucket_batches, epoch_permutation
+    from dancedata.torch_data import MeasureDataset, SecondsDataset
+
+    torch.set_num_threads(1)
+    print(f"store {store}; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    rows = []
+    (first, rate, n), n_windows = baseline(store, args.epochs)
+    rows.append(("baseline: per-item DataLoader(batch_size=1) + pad_sequence", first, rate, n))
+    ds = MeasureDataset(store, split="train")
+    lengths = ds.lengths
+    print(
+        f"{n_windows} train measure windows, {len(set(ds.source.spans.seq_ids))} sequences, "
+        f"{lengths.min()}–{lengths.max()} frames (mean {lengths.mean():.1f})"
+    )
+    for workers in (2, 0):
+        first, rate, n = dancedata_loader(ds, args.epochs, workers)
+        rows.append((f"dancedata: bucketed, pad_collate, {workers} workers", first, rate, n))
+    first, rate, n = dancedata_loader(ds, args.epochs, 2, bucket=False)
+    rows.append(("dancedata: seeded shuffle, pad_collate, 2 workers", first, rate, n))
+    fixed = MeasureDataset(store, split="train", window_frames=128, fit="resample")
+    first, rate, n = dancedata_loader(fixed, args.epochs, 2, bucket=False)
+    rows.append(("dancedata: window_frames=128 resample (SLERP), 2 workers", first, rate, n))
+    sliding = SecondsDataset(store, split="train", seconds=4.0, hop_seconds=1.0)
+    first, rate, n = dancedata_loader(sliding, args.epochs, 2, bucket=False)
+    rows.append(("dancedata: 4 s windows, 1 s hop, 2 workers", first, rate, n))
+
+    base = rows[0][2]
+    print(f"\n| loader | windows / pass | first pass s | batches of {BATCH} / s | × baseline |")
+    print("|---|---:|---:|---:|---:|")
+    for name, first, rate, n in rows:
+        print(f"| {name} | {n} | {first:.2f} | {rate:.1f} | ×{rate / base:.1f} |")
+
+    def overhead(batches) -> float:
+        padded = sum(int(lengths[b].max()) * len(b) for b in batches)
+        return 100 * (padded / int(lengths.sum()) - 1)
+
+    shuffled = np.array_split(epoch_permutation(len(lengths), 0), -(-len(lengths) // BATCH))
+    print(
+        f"\npadded frames beyond the real ones: {overhead(bucket_batches(lengths, BATCH)):.1f} % "
+        f"with length buckets, {overhead(shuffled):.1f} % with a plain shuffle"
+    )
+    print(f"load average at the end {os.getloadavg()[0]:.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
