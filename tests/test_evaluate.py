@@ -600,3 +600,41 @@ def test_reader_refuses_oversized_claims_and_survives_corruption(tmp_path: Path)
             assert motion.n_frames >= 2
             outcomes["ok"] += 1
     assert outcomes["refused"] > 0 and outcomes["ok"] > 0, outcomes
+
+
+def test_evaluate_sequences_pure_layer_lists_and_guards() -> None:
+    """The pure layer: a metric family whose maths fails is skipped with the reason while the
+    others are computed; each sequence missing an input is listed under the metrics it misses."""
+    from dancedata.experiments.evaluate import EvalSequence, EvaluateParams, evaluate_sequences
+
+    rng = np.random.default_rng(3)
+    seqs = []
+    for k in range(3):
+        pos = np.cumsum(rng.normal(scale=0.01, size=(200, 5, 3)), axis=0)  # 5 joints, not 24
+        rows = rng.normal(size=(200, 75))
+        seqs.append(
+            EvalSequence(
+                seq_id=f"s{k}",
+                music_id="m0",
+                n_frames=200,
+                gt_positions=pos,
+                gen_positions=pos + 0.001,
+                gt_rows=rows,
+                gen_rows=rows + 0.1 if k else None,
+                music_beats=np.arange(5, 200, 30),
+                missing={} if k else {"rotations": "positions only"},
+            )
+        )
+    evaluation = evaluate_sequences(seqs, EvaluateParams(), [{"seq_id": "gone", "reason": "bad"}])
+    names = {r.name for r in evaluation.results}
+    assert "mse" in names and "bas_mint" in names
+    assert "could not be computed" in evaluation.skipped_metrics["fid_g"]
+    assert "fid_g" not in names and "fid_k" not in names
+    assert evaluation.unscored["mse"] == [
+        {"seq_id": "gone", "reason": "bad"},
+        {"seq_id": "s0", "reason": "positions only"},
+    ]
+    mse_result = next(r for r in evaluation.results if r.name == "mse")
+    assert mse_result.n_units == 2 and mse_result.value == pytest.approx(0.01 * 75 / 25)
+    with pytest.raises(InputError, match="fid_unit"):
+        EvaluateParams(fid_unit="clip")

@@ -392,6 +392,21 @@ def _fpd_metrics(seqs: list[EvalSequence], p: EvaluateParams, out: list[MetricRe
         )
 
 
+def _guarded(
+    names: Sequence[str], skipped: dict[str, str], out: list[MetricResult], run: Callable[[], None]
+) -> None:
+    """Run one metric family; if the numbers cannot be computed (a ValueError or LinAlgError
+    from the maths, e.g. a degenerate feature matrix), record why for each of its metrics
+    instead of stopping the whole evaluation, and drop its partial results."""
+    before = len(out)
+    try:
+        run()
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        del out[before:]
+        for name in names:
+            skipped[name] = f"could not be computed: {type(exc).__name__}: {str(exc)[:200]}"
+
+
 def evaluate_sequences(
     seqs: Sequence[EvalSequence],
     params: EvaluateParams,
@@ -417,17 +432,21 @@ def evaluate_sequences(
     if by_measure_mse:
         rows = _needs(rows, ["mse"], "measures", lambda s: bool(s.measures), unscored)
     if rows:
-        out.append(
-            mse(
-                _units(rows, "gt_rows", by_measure_mse),
-                _units(rows, "gen_rows", by_measure_mse),
-                space=params.mse_space,  # type: ignore[arg-type]
-                wrap=params.mse_wrap,
-                reduce=params.mse_reduce,  # type: ignore[arg-type]
-                groups=[s.seq_id for s in rows],
+
+        def run_mse() -> None:
+            out.append(
+                mse(
+                    _units(rows, "gt_rows", by_measure_mse),
+                    _units(rows, "gen_rows", by_measure_mse),
+                    space=params.mse_space,  # type: ignore[arg-type]
+                    wrap=params.mse_wrap,
+                    reduce=params.mse_reduce,  # type: ignore[arg-type]
+                    groups=[s.seq_id for s in rows],
+                )
             )
-        )
-        out[-1].convention["unit"] = "measure" if by_measure_mse else "sequence"
+            out[-1].convention["unit"] = "measure" if by_measure_mse else "sequence"
+
+        _guarded(["mse"], skipped, out, run_mse)
     else:
         skipped["mse"] = "no sequence with rotations on both sides"
 
@@ -444,7 +463,7 @@ def evaluate_sequences(
         )
     n_units = len(_units(positions, "gt_positions", params.fid_unit == "measure"))
     if n_units >= 2:
-        _feature_metrics(positions, params, out)
+        _guarded(_FEATURE_METRICS, skipped, out, lambda: _feature_metrics(positions, params, out))
     else:
         for name in _FEATURE_METRICS:
             skipped[name] = (
@@ -464,7 +483,7 @@ def evaluate_sequences(
                 reason = s.missing.get("positions", "no positions")
                 unscored[name].append({"seq_id": s.seq_id, "reason": reason})
     if beats:
-        _beat_metrics(beats, params, out, unscored)
+        _guarded(_BEAT_METRICS, skipped, out, lambda: _beat_metrics(beats, params, out, unscored))
     for name in _BEAT_METRICS:
         if not any(r.name == name for r in out):
             skipped.setdefault(name, "no sequence with generated positions and music beats")
@@ -477,7 +496,7 @@ def evaluate_sequences(
         unscored,
     )
     if poses:
-        _fpd_metrics(poses, params, out)
+        _guarded(["fpd", "fmd"], skipped, out, lambda: _fpd_metrics(poses, params, out))
     else:
         skipped["fpd"] = skipped["fmd"] = "no sequence with rotations on both sides"
 
