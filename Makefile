@@ -71,7 +71,8 @@ pipeline: $(STAMP) $(VIZ_STAMP) browser
 test: $(STEMS_STAMP) $(VIZ_STAMP) browser
 	$(PY) -m pytest -q
 
-bench: $(STAMP) $(VIZ_STAMP)
+# bench_batching.py needs torch: the stems stamp installs the pinned torch build.
+bench: $(STAMP) $(VIZ_STAMP) $(STEMS_STAMP)
 	$(PY) bench/run.py $(BENCH)
 
 # Hypothesis fuzzing of the readers (fuzz/run.py): FUZZ_MINUTES of examples, then statistics.
