@@ -1,9 +1,11 @@
 """Batches for training: dancedata's batching against the plain per-item loop (issue 14.1).
 
-On a featurized, segmented store (``--store``; default ``bench/out/batching-200``, a
-200-sequence synthetic AIST++ store built here when absent: ``synth aist --sequences 200
---seed 0``, ``ingest aist``, ``featurize``, ``segment``), over the crossmodal train split's
-measure windows (fact_motion_225 + fact_audio_35), it times batches of 64 windows per second:
+On a featurized, segmented store (``--store``; default ``bench/out/batching-gBR-gPO``, built
+here when absent: the full synthetic twin ``synth aist --full --seed 0`` (1408 sequences; the
+demo subset stops at 40), of which ``ingest aist --genres gBR,gPO --annotations ''`` keeps two
+genres' ~280 sequences, then ``featurize`` and ``segment``: a part of the twin, to keep the run
+short on the shared machine), over the crossmodal train split's measure windows
+(fact_motion_225 + fact_audio_35), it times batches of 64 windows per second:
 
 * baseline — the plain per-item loop a training script writes when ``batch_size=8`` fails:
   ``DataLoader(MeasureDataset(...), batch_size=1, shuffle=True)`` in one process, 64 items
@@ -32,12 +34,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 HERE = Path(__file__).resolve().parent
-DEFAULT_STORE = HERE / "out" / "batching-200"
+DEFAULT_STORE = HERE / "out" / "batching-gBR-gPO"
+GENRES = ["gBR", "gPO"]
 BATCH = 64
 
 
-def build_store(path: Path, sequences: int = 200) -> None:
-    """synth aist → ingest → featurize → segment into ``path`` (skipped when it exists)."""
+def build_store(path: Path) -> None:
+    """Full twin → two genres → featurize → segment into ``path`` (skipped when it exists)."""
     if (path / "store.json").exists():
         return
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
@@ -45,11 +48,12 @@ def build_store(path: Path, sequences: int = 200) -> None:
     from dancedata.pipeline.segment import SegmentOptions, segment
     from dancedata.synth.aist import synth_aist
 
-    print(f"building {path} ({sequences} synthetic sequences; a few minutes)", flush=True)
-    raw = path.with_name(path.name + "-raw")
-    synth_aist(raw, n_sequences=sequences, seed=0)
-    ingest_aist(path, raw, AistIngestOptions())
-    featurize(path, FeaturizeOptions(workers=2))
+    raw = path.with_name("batching-twin-raw")
+    print(f"building {path} from the twin's {', '.join(GENRES)} (several minutes)", flush=True)
+    if not raw.exists():  # synth writes a temporary folder and renames it when complete
+        synth_aist(raw, full=True, seed=0, overwrite=True)
+    ingest_aist(path, raw, AistIngestOptions(genres=GENRES, annotations=[]))
+    featurize(path, FeaturizeOptions())
     segment(path, SegmentOptions())
 
 
