@@ -638,3 +638,43 @@ def test_evaluate_sequences_pure_layer_lists_and_guards() -> None:
     assert mse_result.n_units == 2 and mse_result.value == pytest.approx(0.01 * 75 / 25)
     with pytest.raises(InputError, match="fid_unit"):
         EvaluateParams(fid_unit="clip")
+
+
+def test_skip_frames_scores_bas_mint_as_mint_does(
+    store: Path, model_path: Path, tmp_path: Path
+) -> None:
+    """--skip-frames 120: mint detects motion beats on the whole generated clip and scores
+    frames 120: (calculate_beat_scores.py); the record equals the transcription of mint's code
+    (tests/test_metrics_reference.py) on the same positions and beats."""
+    from tests.test_metrics_reference import ref_mint_alignment_score, ref_mint_motion_peak_onehot
+
+    motion = noisy_motion(store, seed=3)
+    gen = tmp_path / "gen"
+    gen.mkdir()
+    for seq, (aa, trans) in motion.items():
+        np.save(gen / f"{seq}.npy", fact_rows(aa, trans))
+    out = tmp_path / "res"
+    run_cli(
+        "evaluate",
+        str(store),
+        "--generated",
+        str(gen),
+        *SPLIT,
+        "--smpl-model",
+        str(model_path),
+        "--skip-frames",
+        "120",
+        "--out",
+        str(out),
+    )
+    record = json.loads((out / "results.json").read_text())
+    value = next(r["value"] for r in record["results"] if r["metric"] == "bas_mint")
+    s = dancedata.open_store(store)
+    model = load_smpl_model(model_path)
+    scores = []
+    for seq in s.seq_ids(split="train"):
+        joints = smpl_joint_positions(model, *motion[seq])
+        onehot = np.asarray(s.audio(seq, "beats"))[: len(joints)]
+        peaks = ref_mint_motion_peak_onehot(joints)
+        scores.append(ref_mint_alignment_score(onehot[120:], peaks[120:]))
+    assert value == pytest.approx(float(np.mean(scores)), abs=1e-6)

@@ -270,6 +270,7 @@ def _pair(
         n_frames=stop - skip,
         gt_positions=None if gt["positions"] is None else gt["positions"][cut],
         gen_positions=None if gen_pos is None else gen_pos[cut],
+        gen_positions_before=None if gen_pos is None else gen_pos[:skip],
         gt_rows=gt_rows,
         gen_rows=gen_rows,
         gt_axis_angle=gt["axis_angle"][cut],
