@@ -237,3 +237,15 @@ def test_content_no_decoder_reads_is_refused_naming_the_extension_lie(tmp_path: 
     path.write_bytes(b"these are my notes, not audio\n" * 100)
     with pytest.raises(InputError, match=r"cannot decode audio: .*whatever the extension"):
         decode_mono(path, 30720)
+
+
+def test_tempo_of_a_track_past_the_limit_is_not_estimated_by_decoding_it_all(
+    tmp_path: Path,
+) -> None:
+    from dancedata.io.audio_decode import DEFAULT_MAX_AUDIO_SECONDS
+
+    music = silent_flac(tmp_path / "long.flac", DEFAULT_MAX_AUDIO_SECONDS + 60)
+    bvh = dance(tmp_path / "dance.bvh", 3.0)
+    with pytest.raises(InputError, match=r"estimating its tempo would decode all .*--bpm") as info:
+        ingest_bvh(tmp_path / "store", [bvh], BvhIngestOptions(music=music, fps=FPS))
+    assert info.value.path == str(music)
