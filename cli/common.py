@@ -63,14 +63,38 @@ def setup(quiet: bool) -> None:
     set_quiet(quiet)
 
 
-def report(result: Any, command: str, as_json: bool) -> None:
-    """Print the command's result: one human line (stderr when --json) or the JSON summary."""
+def report(result: Any, command: str, as_json: bool, store: str | None = None) -> None:
+    """Print the command's result: one human line (stderr when --json) or the JSON summary.
+    A result found in a version that is not the latest (``store`` given) says which version
+    is the latest and how to switch to the one that holds the result."""
+    hint = _switch_hint(result, store)
     if as_json:
-        typer.echo(json.dumps({"command": command, **result.as_dict()}, indent=2, default=str))
+        summary = {"command": command, **result.as_dict()}
+        if hint is not None:
+            summary.update(latest=result.latest, hint=hint)
+        typer.echo(json.dumps(summary, indent=2, default=str))
         return
-    typer.echo(result.message(command))
+    text = result.message(command)
+    if hint is not None:
+        if f"latest version is {result.latest}" not in text:
+            text += f"; the latest version is {result.latest}"
+        text += f"; {hint}"
+    typer.echo(text)
     for item in result.skipped:
         typer.echo(f"  skipped {item['path']}: {item['error']}", err=True)
+
+
+def _switch_hint(result: Any, store: str | None) -> str | None:
+    """For a "nothing to do" result: fill in the store's latest version when the command did
+    not, and the checkout command that makes the found version the latest (None if it is)."""
+    if store is None or getattr(result, "created", True):
+        return None
+    from dancedata.store.checkout import switch_hint
+    from dancedata.store.layout import StoreLayout
+
+    if getattr(result, "latest", None) is None:
+        result.latest = StoreLayout(store).latest()
+    return switch_hint(store, result.version, result.latest)
 
 
 def split_csv(value: str | None) -> list[str] | None:

@@ -74,4 +74,4 @@ def ingest_aist_cmd(
         wait_for_lock=wait,
         workers=workers,
     )
-    report(ingest_aist(store, raw, options), "ingest aist", as_json)
+    report(ingest_aist(store, raw, options), "ingest aist", as_json, store=str(store))

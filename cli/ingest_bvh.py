@@ -97,4 +97,5 @@ def ingest_bvh_cmd(
         on_error=on_error.value,
         wait_for_lock=wait,
     )
-    report(ingest_bvh(store, list(paths or []), options), "ingest bvh", as_json)
+    result = ingest_bvh(store, list(paths or []), options)
+    report(result, "ingest bvh", as_json, store=str(store))

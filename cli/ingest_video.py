@@ -159,7 +159,7 @@ def ingest_video_cmd(
         wait_for_lock=wait,
     )
     result = ingest_video(store, videos, options)
-    report(result, "ingest video", as_json)
+    report(result, "ingest video", as_json, store=str(store))
     if not as_json:
         for line in _notes(result.counts.get("videos", {})):
             typer.echo(line, err=True)

@@ -161,4 +161,4 @@ def keyframes_command(
         version=version,
         wait_for_lock=wait,
     )
-    report(run(store, options), "keyframes", as_json)
+    report(run(store, options), "keyframes", as_json, store=str(store))

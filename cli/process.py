@@ -122,7 +122,7 @@ def featurize(
         accept_changed_music=accept_changed_music,
         max_audio_seconds=max_audio_seconds or None,
     )
-    report(run(store, options), "featurize", as_json)
+    report(run(store, options), "featurize", as_json, store=str(store))
 
 
 @app.command()
@@ -149,4 +149,4 @@ def segment(
         version=version,
         wait_for_lock=wait,
     )
-    report(run(store, options), "segment", as_json)
+    report(run(store, options), "segment", as_json, store=str(store))

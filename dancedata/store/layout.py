@@ -104,6 +104,49 @@ def parse_pointer(text: str | bytes, where: str | Path) -> dict[str, Any]:
     return pointer
 
 
+def pointer_with_latest(pointer: dict[str, Any] | None, latest: str | None) -> dict[str, Any]:
+    """store.json naming ``latest``, with every other field of ``pointer`` (the checkout log,
+    fields a newer dancedata added) kept: the pointer contract is additive."""
+    record = dict(pointer or {})
+    record.update({"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "latest": latest})
+    return record
+
+
+def last_checkout(pointer: dict[str, Any]) -> dict[str, Any] | None:
+    """The newest entry of store.json's ``checkouts`` log, or None (no checkout ever, or a log
+    that is not a list of objects, which is then ignored)."""
+    log = pointer.get("checkouts")
+    if not isinstance(log, list) or not log or not isinstance(log[-1], dict):
+        return None
+    return log[-1]
+
+
+def checkout_newest(pointer: dict[str, Any]) -> int:
+    """The highest version number any checkout saw committed (0 when none): those versions
+    stay committed although ``latest`` may now name an older one."""
+    log = pointer.get("checkouts")
+    numbers = [0]
+    for entry in log if isinstance(log, list) else []:
+        seen = entry.get("newest") if isinstance(entry, dict) else None
+        if isinstance(seen, str) and _VERSION_RE.match(seen):
+            numbers.append(version_number(seen))
+    return max(numbers)
+
+
+def checkout_holds(pointer: dict[str, Any], named: str, newest: str) -> bool:
+    """Whether store.json's ``latest`` = ``named``, older than the newest committed version
+    ``newest``, is a deliberate checkout: the last checkout chose ``named`` and no version was
+    committed past the newest one it saw. (A version committed after a checkout whose pointer
+    update was lost, a crash between rename and pointer write, still wins.)"""
+    entry = last_checkout(pointer)
+    if entry is None or entry.get("version") != named:
+        return False
+    seen = entry.get("newest")
+    if not isinstance(seen, str) or not _VERSION_RE.match(seen):
+        return False
+    return version_number(newest) <= version_number(seen)
+
+
 # -- manifests ---------------------------------------------------------------------------------
 # Fields other code relies on, with the JSON types they must have when present. "fingerprint"
 # must also be present: a version without one can be neither a parent nor a cached result.
@@ -212,11 +255,19 @@ class StoreLayout:
         return parse_pointer(text, self.store_file)
 
     def write_pointer(self, latest: str | None) -> None:
+        """Point store.json at ``latest``, keeping its other fields (the checkout log)."""
         self.root.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(
-            self.store_file,
-            {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "latest": latest},
-        )
+        write_json_atomic(self.store_file, pointer_with_latest(self._pointer_or_none(), latest))
+
+    def write_pointer_record(self, pointer: dict[str, Any]) -> None:
+        """Replace store.json with ``pointer`` (already checked), atomically."""
+        write_json_atomic(self.store_file, pointer)
+
+    def _pointer_or_none(self) -> dict[str, Any] | None:
+        try:
+            return self.read_pointer() if self.exists() else None
+        except StoreError:
+            return None
 
     def ensure(self) -> None:
         """Create an empty store (store.json with no latest version) if there is none."""
@@ -291,10 +342,15 @@ class StoreLayout:
         newest = committed[-1]
         if named in committed and version_number(named) >= version_number(newest):
             return named
+        if named in committed and checkout_holds(pointer, named, newest):
+            return named  # `dancedata checkout` moved latest back; nothing newer since
         return newest
 
     def resolve(self, version: str | None) -> str:
-        """The version to read: ``version`` if committed, else the latest; clear errors."""
+        """The version to read: ``version`` (``"v3"``, or ``"3"`` for it) if committed, else
+        the latest; clear errors."""
+        if version is not None and version.strip().isdigit():
+            version = f"v{int(version)}"
         local = isinstance(self.versions_dir, Path)  # (remote layouts list differently)
         if local and version is not None and version in self.version_dirs():
             problem = self.version_problem(version)

@@ -38,8 +38,6 @@ from dancedata.errors import StoreError
 from dancedata.store.build import BUILD_DIR, PREPARED_FILE, BuildArea
 from dancedata.store.fs import remote_fs, zarr_store
 from dancedata.store.layout import (
-    FORMAT_NAME,
-    FORMAT_VERSION,
     MANIFEST_FILE,
     STORE_FILE,
     TABLE_FILES,
@@ -47,8 +45,10 @@ from dancedata.store.layout import (
     VERSIONS_DIR,
     ZARR_DIR,
     StoreLayout,
+    checkout_newest,
     parse_manifest,
     parse_pointer,
+    pointer_with_latest,
     version_number,
 )
 from dancedata.store.lock import LOCK_FILE, describe_holder, holder_is_stale, this_holder
@@ -100,9 +100,17 @@ class RemoteLayout(StoreLayout):
         return parse_pointer(text, self.store_file)
 
     def write_pointer(self, latest: str | None) -> None:
-        """One PUT: atomic, and the commit point of a remote version."""
-        body = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "latest": latest}
-        self.fs.pipe_file(self.key(STORE_FILE), (json.dumps(body, indent=2) + "\n").encode())
+        """One PUT: atomic, and the commit point of a remote version. Other fields of
+        store.json (the checkout log) are kept."""
+        current = None
+        if self.exists():
+            with contextlib.suppress(StoreError):
+                current = self.read_pointer()
+        self.write_pointer_record(pointer_with_latest(current, latest))
+
+    def write_pointer_record(self, pointer: dict[str, Any]) -> None:
+        body = json.dumps(pointer, indent=2, sort_keys=True) + "\n"
+        self.fs.pipe_file(self.key(STORE_FILE), body.encode())
 
     def ensure(self) -> None:
         if self.exists():
@@ -116,10 +124,13 @@ class RemoteLayout(StoreLayout):
         """Versions with a manifest whose number is at most the one store.json names."""
         if not self.exists():
             return []
-        latest = self.read_pointer().get("latest")
+        pointer = self.read_pointer()
+        latest = pointer.get("latest")
         if latest is None:
             return []
-        limit = version_number(latest)
+        # after `dancedata checkout` latest may be older than versions committed before it:
+        # the checkout log records the newest one it saw, which stays committed
+        limit = max(version_number(latest), checkout_newest(pointer))
         found = self.fs.glob(self.key(VERSIONS_DIR, "v*", MANIFEST_FILE))
         names = {p.rstrip("/").split("/")[-2] for p in found}
         return sorted(

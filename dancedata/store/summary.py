@@ -7,6 +7,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from dancedata.store.checkout import checkout_log
 from dancedata.store.checksums import sha256_file
 from dancedata.store.integrity import CHECKSUMS_FILE
 from dancedata.store.layout import TABLE_FILES, StoreLayout
@@ -57,6 +58,7 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
         "created_at": manifest.get("created_at"),
         "parent": manifest.get("parent"),
         "skipped": len(manifest.get("skipped", [])),
+        "checkouts": checkout_log(store),  # `dancedata checkout`, oldest first
     }
     if reader.has_table("sequences"):
         sequences = reader.table("sequences").to_pylist()
@@ -165,4 +167,9 @@ def format_info(info: dict[str, Any]) -> str:
     lines.append("tables    " + ", ".join(f"{k} ({v} rows)" for k, v in info["tables"].items()))
     if info.get("checksums_sha256"):
         lines.append(f"record    checksums.json sha256 {info['checksums_sha256']}")
+    for entry in info.get("checkouts", []):
+        lines.append(
+            f"checkout  {entry.get('at')} {entry.get('by')}: latest {entry.get('previous')} "
+            f"-> {entry.get('version')}"
+        )
     return "\n".join(lines)
