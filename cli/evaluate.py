@@ -65,6 +65,13 @@ def evaluate_command(
             "complete measure of the measures table)."
         ),
     ] = "sequence",
+    fid_reference: Annotated[
+        str,
+        typer.Option(
+            help="FID / diversity reference: paired_gt (the ground truth of the scored units), "
+            "train_gt (the train split) or all_gt (every sequence, as mint's all of AIST++)."
+        ),
+    ] = "paired_gt",
     kinetic_mode: Annotated[
         str, typer.Option(help="Kinetic features: parity (AIST++ code) or corrected.")
     ] = "parity",
@@ -147,6 +154,7 @@ def evaluate_command(
         mse_wrap=mse_wrap,
         mse_reduce=mse_reduce,
         fid_unit=fid_unit,
+        fid_reference=fid_reference,
         kinetic_mode=kinetic_mode,
         normalize=normalize,
         drop_constant_ref_columns=drop_constant_ref_columns,

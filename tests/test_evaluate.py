@@ -678,3 +678,36 @@ def test_skip_frames_scores_bas_mint_as_mint_does(
         peaks = ref_mint_motion_peak_onehot(joints)
         scores.append(ref_mint_alignment_score(onehot[120:], peaks[120:]))
     assert value == pytest.approx(float(np.mean(scores)), abs=1e-6)
+
+
+def test_fid_reference_other_than_paired_ground_truth() -> None:
+    """fid_reference train_gt / all_gt: the given reference units normalise and are compared
+    with; div_*_gt is the reference's own diversity."""
+    from dancedata.experiments.evaluate import EvalSequence, EvaluateParams, evaluate_sequences
+    from dancedata.experiments.metrics import diversity, motion_feature_matrix
+
+    rng = np.random.default_rng(4)
+
+    def walk(n: int = 150) -> np.ndarray:
+        return np.cumsum(rng.normal(scale=0.01, size=(n, 24, 3)), axis=0) + rng.normal(
+            size=(1, 24, 3)
+        )
+
+    seqs = [
+        EvalSequence(
+            seq_id=f"s{k}", music_id=None, n_frames=150, gt_positions=walk(), gen_positions=walk()
+        )
+        for k in range(4)
+    ]
+    reference = [walk(200) for _ in range(6)]
+    params = EvaluateParams(fid_reference="all_gt")
+    evaluation = evaluate_sequences(seqs, params, reference_positions=reference)
+    by_name = {r.name: r for r in evaluation.results}
+    gen = [s.gen_positions for s in seqs]
+    assert by_name["fid_k"].value == pytest.approx(fid(gen, reference, "kinetic").value)
+    assert by_name["fid_k"].convention["reference"] == "all_gt"
+    ref_feats = motion_feature_matrix(reference, "kinetic")
+    assert by_name["div_k_gt"].value == pytest.approx(diversity(ref_feats, ref_feats).value)
+    assert by_name["div_k_gt"].n_units == 6 and by_name["div_k_gt"].n_frames == 1200
+    with pytest.raises(InputError, match="needs"):
+        evaluate_sequences(seqs, params)

@@ -14,7 +14,8 @@ Metrics and what they need (both sides):
 * ``fid_k``, ``fid_g``, ``div_k``, ``div_g``, ``div_k_gt``, ``div_g_gt``: SMPL-24 positions;
   one feature vector per sequence (``fid_unit = "sequence"``) or per complete measure
   (``"measure"``), reference = the ground truth of the same units
-  (``fid_reference = "paired_gt"``); at least 2 units.
+  (``fid_reference = "paired_gt"``) or given reference units (``train_gt``, ``all_gt``); at
+  least 2 units.
 * ``bas_mint``, ``bas_bailando``, ``bas_msd_motion2music``, ``bas_msd_music2motion``,
   ``beat_coverage``, ``beat_hit_rate``, ``beat_accuracy``: generated positions + the music
   beats; per-sequence values averaged over sequences.
@@ -109,7 +110,7 @@ class EvaluateParams:
             "mse_space": ("euler75", "euler72", "rotmat"),
             "mse_reduce": ("pooled", "sequence_mean", "measure_mean"),
             "fid_unit": ("sequence", "measure"),
-            "fid_reference": ("paired_gt",),
+            "fid_reference": ("paired_gt", "train_gt", "all_gt"),
             "kinetic_mode": ("parity", "corrected"),
             "beat_detector": ("mint", "bailando"),
             "fpd_parity": ("spec", "transflower"),
@@ -217,10 +218,15 @@ def _units(seqs: list[EvalSequence], attr: str, by_measure: bool) -> list[np.nda
     return [getattr(s, attr)[a:b] for s in seqs for a, b in s.measures]
 
 
-def _feature_metrics(seqs: list[EvalSequence], p: EvaluateParams, out: list[MetricResult]) -> None:
+def _feature_metrics(
+    seqs: list[EvalSequence],
+    p: EvaluateParams,
+    out: list[MetricResult],
+    reference: Sequence[np.ndarray] | None = None,
+) -> None:
     by_measure = p.fid_unit == "measure"
     gen = _units(seqs, "gen_positions", by_measure)
-    gt = _units(seqs, "gt_positions", by_measure)
+    gt = list(reference) if reference is not None else _units(seqs, "gt_positions", by_measure)
     frames = sum(len(u) for u in gen)
     unit = {"unit": p.fid_unit, "reference": p.fid_reference}
     for kind, suffix in (("kinetic", "k"), ("geometric", "g")):
@@ -259,8 +265,12 @@ def _feature_metrics(seqs: list[EvalSequence], p: EvaluateParams, out: list[Metr
             f_gen, f_gt = f_gen[:, keep], f_gt[:, keep]
         ref = f_gt if p.normalize else None
         conv = {"features": kind, **unit, "drop_constant_ref_columns": p.drop_constant_ref_columns}
-        for name, values in ((f"div_{suffix}", f_gen), (f"div_{suffix}_gt", f_gt)):
-            r = diversity(values, ref, name=name, n_frames=frames)
+        gt_frames = sum(len(u) for u in gt)
+        for name, values, count in (
+            (f"div_{suffix}", f_gen, frames),
+            (f"div_{suffix}_gt", f_gt, gt_frames),
+        ):
+            r = diversity(values, ref, name=name, n_frames=count)
             out.append(MetricResult(name, r.value, {**r.convention, **conv}, r.n_units, r.n_frames))
 
 
@@ -422,9 +432,18 @@ def evaluate_sequences(
     seqs: Sequence[EvalSequence],
     params: EvaluateParams,
     unreadable: Sequence[dict[str, str]] = (),
+    reference_positions: Sequence[np.ndarray] | None = None,
 ) -> Evaluation:
     """Every metric of :data:`METRICS` over ``seqs``; ``unreadable`` ({seq_id, reason}) are
-    sequences with no usable generated motion at all, listed as unscored under every metric."""
+    sequences with no usable generated motion at all, listed as unscored under every metric.
+    ``reference_positions``: the FID / diversity reference units when ``fid_reference`` is not
+    ``paired_gt`` (e.g. every train sequence's ground truth, cut as ``fid_unit`` says)."""
+    if (params.fid_reference == "paired_gt") != (reference_positions is None):
+        raise InputError(
+            f"fid_reference {params.fid_reference!r} "
+            + ("takes no" if reference_positions is not None else "needs")
+            + " reference positions"
+        )
     unscored: dict[str, list[dict[str, str]]] = {name: [] for name in METRICS}
     for item in unreadable:
         for name in METRICS:
@@ -474,7 +493,12 @@ def evaluate_sequences(
         )
     n_units = len(_units(positions, "gt_positions", params.fid_unit == "measure"))
     if n_units >= 2:
-        _guarded(_FEATURE_METRICS, skipped, out, lambda: _feature_metrics(positions, params, out))
+        _guarded(
+            _FEATURE_METRICS,
+            skipped,
+            out,
+            lambda: _feature_metrics(positions, params, out, reference_positions),
+        )
     else:
         for name in _FEATURE_METRICS:
             skipped[name] = (

@@ -298,6 +298,40 @@ def _beats(store: DanceStore, seq_id: str) -> tuple[np.ndarray | None, str | Non
     return beat_frames(store.audio(seq_id, "beats")), None
 
 
+def _reference_units(
+    store: DanceStore,
+    options: EvaluateOptions,
+    model: Any,
+    euler_order: str,
+    measures: dict[str, list[tuple[int, int]]] | None,
+) -> list[np.ndarray] | None:
+    """Ground-truth position units of ``fid_reference`` ``train_gt`` (the scheme's train split)
+    or ``all_gt`` (every sequence; mint uses all of AIST++), whole sequences or their complete
+    measures; None for ``paired_gt``. Excluded genres stay excluded."""
+    params = options.params
+    if params.fid_reference == "paired_gt":
+        return None
+    split = "train" if params.fid_reference == "train_gt" else None
+    seq_ids = store.seq_ids(split=split, scheme=options.scheme)
+    seq_ids = [q for q in seq_ids if store.sequence(q)["genre"] not in set(options.exclude_genres)]
+    units: list[np.ndarray] = []
+    for seq_id in seq_ids:
+        gt, missing = _gt_side(store, seq_id, model, euler_order)
+        if gt["positions"] is None:
+            raise InputError(
+                f"fid_reference {params.fid_reference}: {seq_id}: {missing['positions']}"
+            )
+        if params.fid_unit == "measure":
+            if measures is None:
+                raise InputError("fid_unit measure needs the measures table (run segment)")
+            units.extend(gt["positions"][a:b] for a, b in measures.get(seq_id, []))
+        else:
+            units.append(gt["positions"])
+    if len(units) < 2:
+        raise InputError(f"fid_reference {params.fid_reference} has {len(units)} unit(s), need 2")
+    return units
+
+
 # ---------------------------------------------------------------------------------- record
 
 
@@ -461,7 +495,8 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         reasons = "; ".join(f"{u['seq_id']}: {u['reason']}" for u in unreadable[:3])
         raise InputError(f"no sequence of the split could be scored ({reasons})", generated)
 
-    evaluation = evaluate_sequences(seqs, params, unreadable)
+    reference = _reference_units(store, options, model, euler_order, measures)
+    evaluation = evaluate_sequences(seqs, params, unreadable, reference)
     config = {
         "params": params.as_dict(),
         "split": options.split,
