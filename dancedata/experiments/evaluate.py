@@ -223,13 +223,15 @@ def _feature_metrics(
     p: EvaluateParams,
     out: list[MetricResult],
     reference: Sequence[np.ndarray] | None = None,
+    kinds: tuple[str, ...] = ("kinetic", "geometric"),
 ) -> None:
     by_measure = p.fid_unit == "measure"
     gen = _units(seqs, "gen_positions", by_measure)
     gt = list(reference) if reference is not None else _units(seqs, "gt_positions", by_measure)
     frames = sum(len(u) for u in gen)
     unit = {"unit": p.fid_unit, "reference": p.fid_reference}
-    for kind, suffix in (("kinetic", "k"), ("geometric", "g")):
+    for kind in kinds:
+        suffix = kind[0]
         result = fid(
             gen,  # type: ignore[arg-type]
             gt,  # type: ignore[arg-type]
@@ -493,12 +495,15 @@ def evaluate_sequences(
         )
     n_units = len(_units(positions, "gt_positions", params.fid_unit == "measure"))
     if n_units >= 2:
-        _guarded(
-            _FEATURE_METRICS,
-            skipped,
-            out,
-            lambda: _feature_metrics(positions, params, out, reference_positions),
-        )
+        for kind in ("kinetic", "geometric"):
+            _guarded(
+                [f"fid_{kind[0]}", f"div_{kind[0]}", f"div_{kind[0]}_gt"],
+                skipped,
+                out,
+                lambda kind=kind: _feature_metrics(
+                    positions, params, out, reference_positions, (kind,)
+                ),
+            )
     else:
         for name in _FEATURE_METRICS:
             skipped[name] = (
