@@ -41,6 +41,7 @@ from dancedata.ingest.aist_camera_inputs import (
     find_camera_inputs,
 )
 from dancedata.ingest.aist_splits import split_rows
+from dancedata.ingest.locked import already_ingested, latest_version
 from dancedata.ingest.result import CommandResult
 from dancedata.io.aist import AistMotion, find_ignore_list, find_split_files, read_motion
 from dancedata.io.audio import audio_info, feature_frames, find_music, resampled_length
@@ -50,8 +51,7 @@ from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS
 from dancedata.store.arrays import FrameArrayWriter
 from dancedata.store.checksums import describe_input, fingerprint
 from dancedata.store.contract import build_table
-from dancedata.store.layout import StoreLayout
-from dancedata.store.writer import VersionWriter, find_version_with_fingerprint
+from dancedata.store.writer import VersionWriter, hold_store_lock
 
 AIST_FPS = 60.0
 AUDIO_HOP = 512
@@ -359,17 +359,18 @@ def ingest_aist(store: str | Path, raw: str | Path, options: AistIngestOptions) 
     inputs = _inputs(inventory)
     config = options.config()
     fp = fingerprint("ingest aist", config, [i["sha256"] for i in inputs], __version__)
-    existing = find_version_with_fingerprint(store, fp)
-    if existing is not None:
-        return CommandResult(version=existing, created=False)
+    ingested = already_ingested(store, fp)  # (asked again under the lock)
+    if ingested is not None:
+        return ingested
     music_rows, music_frames, unreadable_music = _music_rows(inventory, options.on_error)
     checksums = {i["path"]: i["sha256"] for i in inputs}
     for row in music_rows:
         row["sha256"] = checksums[row["path"]]
 
-    layout = StoreLayout(store)
-    parent = layout.latest() if layout.exists() else None
+    # No lost update: the items below are entered in order, so the parent is read once the
+    # lock is held, and the result is looked for again under it (dancedata.ingest.locked).
     with (
+        hold_store_lock(store, wait=options.wait_for_lock, create=True) as lock,
         make_executor(options.workers) as executor,
         VersionWriter(
             store,
@@ -377,13 +378,17 @@ def ingest_aist(store: str | Path, raw: str | Path, options: AistIngestOptions) 
             config=config,
             fingerprint=fp,
             inputs=inputs,
-            parent=parent,
+            parent=latest_version(store),
             carry_over=False,
             wait_for_lock=options.wait_for_lock,
             stage="ingest",
             resumable=True,
+            lock=lock,
         ) as version,
     ):
+        ingested = already_ingested(store, fp)  # by a writer this one waited for
+        if ingested is not None:
+            return ingested
         # resume (issue 8.1): keep the reads a killed run finished, rebuild every output.
         version.reset_outputs()
         version.mark_prepared()

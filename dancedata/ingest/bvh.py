@@ -30,6 +30,7 @@ from dancedata.ingest.bvh_arrays import SOURCE, BvhArrayStream
 from dancedata.ingest.bvh_inputs import BvhInput, resolve_inputs
 from dancedata.ingest.bvh_motion import BvhMotion, BvhSettings, process_bvh
 from dancedata.ingest.bvh_units import parse_units
+from dancedata.ingest.locked import already_ingested
 from dancedata.ingest.result import CommandResult
 from dancedata.ingest.run_state import IngestRun
 from dancedata.io.bvh_attrs import is_bvh_skeleton
@@ -39,7 +40,7 @@ from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
-from dancedata.store.writer import VersionWriter, base_fingerprint, find_version_with_fingerprint
+from dancedata.store.writer import VersionWriter, base_fingerprint, hold_store_lock
 
 __all__ = ["COMMAND", "BvhIngestOptions", "ingest_bvh"]
 
@@ -393,6 +394,24 @@ def ingest_bvh(
     )
     run = _Run(on_error=options.on_error, options=options)
     inputs, keys = _checked_inputs(run, inputs)
+    if options.append and not StoreLayout(store).exists():
+        raise InputError("--append needs an existing store", store)
+    # No lost update: the version appended to, the parent, the fingerprint (which names the
+    # version appended to) and the "already done" checks are read under the store lock, so an
+    # append that waited behind another writer appends to that writer's result.
+    with hold_store_lock(store, wait=options.wait_for_lock, create=not options.append) as lock:
+        return _ingest_locked(store, inputs, keys, run, settings, lock)
+
+
+def _ingest_locked(
+    store: str | Path,
+    inputs: list[BvhInput],
+    keys: list[str],
+    run: _Run,
+    settings: BvhSettings,
+    lock: Any,
+) -> CommandResult:
+    options = run.options
     layout = StoreLayout(store)
     config = options.config()
     parent = _parent(store, layout) if options.append else None
@@ -402,9 +421,9 @@ def ingest_bvh(
         _check_new_ids(parent, inputs)
         keys.append(f"append-to={base_fingerprint(parent.reader.manifest)}")
     fp = fingerprint(COMMAND, config, keys, __version__)
-    existing = find_version_with_fingerprint(store, fp)
-    if existing is not None:
-        return CommandResult(version=existing, created=False)
+    ingested = already_ingested(store, fp)
+    if ingested is not None:
+        return ingested
     inputs, tracks = _tracks(run, inputs)
 
     with VersionWriter(
@@ -417,6 +436,8 @@ def ingest_bvh(
         carry_over=False,
         wait_for_lock=options.wait_for_lock,
         stage="ingest",
+        lock=lock,
+        based_on=parent.reader.version if parent else None,  # (read under this same lock)
     ) as version:
         stream = BvhArrayStream(version, options.up_axis, options.skeleton_atol_m)
         if parent is not None:

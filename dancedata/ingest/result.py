@@ -14,11 +14,17 @@ class CommandResult:
     created: bool
     counts: dict[str, Any] = field(default_factory=dict)
     skipped: list[dict[str, str]] = field(default_factory=list)
+    # The store's latest version when the result was found (not created): the message names it
+    # when it is another version, since "nothing to do" does not make that result the latest.
+    latest: str | None = None
 
     def message(self, command: str) -> str:
         if self.created:
             return f"{command}: wrote version {self.version}"
-        return f"{command}: nothing to do, version {self.version} already holds this result"
+        text = f"{command}: nothing to do, version {self.version} already holds this result"
+        if self.latest is not None and self.latest != self.version:
+            text += f"; the latest version is {self.latest}"
+        return text
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -26,4 +32,5 @@ class CommandResult:
             "created": self.created,
             "counts": self.counts,
             "skipped": self.skipped,
+            "latest": self.version if self.created else self.latest,  # None: not looked up
         }

@@ -26,6 +26,7 @@ from typing import Any
 
 from dancedata._version import __version__
 from dancedata.errors import InputError
+from dancedata.ingest.locked import already_ingested, latest_version
 from dancedata.ingest.result import CommandResult
 from dancedata.ingest.run_state import IngestRun
 from dancedata.ingest.video_inputs import VideoInputs, check_unique_stems, resolve_inputs
@@ -35,8 +36,7 @@ from dancedata.progress import progress
 from dancedata.store.arrays import FrameArrayWriter
 from dancedata.store.checksums import describe_input, fingerprint
 from dancedata.store.contract import build_table
-from dancedata.store.layout import StoreLayout
-from dancedata.store.writer import VersionWriter, find_version_with_fingerprint
+from dancedata.store.writer import VersionWriter, hold_store_lock
 
 COMMAND = "ingest video"
 
@@ -401,9 +401,9 @@ def ingest_video(
     keys = [_sequence_key(run, inputs) for inputs in progress(found, "checksums", unit="video")]
     config = options.config()
     fp = fingerprint(COMMAND, config, keys, __version__)
-    existing = find_version_with_fingerprint(store, fp)
-    if existing is not None:
-        return CommandResult(version=existing, created=False)
+    ingested = already_ingested(store, fp)  # (asked again under the lock)
+    if ingested is not None:
+        return ingested
 
     seqs = _process(run, found)
     fps = seqs[0].poses.fps
@@ -416,19 +416,26 @@ def ingest_video(
         frame += seq.poses.n_frames
     counts = _counts(seqs, music_rows, run)
 
-    layout = StoreLayout(store)
-    parent = layout.latest() if layout.exists() else None
-    with VersionWriter(
-        store,
-        command=COMMAND,
-        config=config,
-        fingerprint=fp,
-        inputs=list(run.described.values()),
-        parent=parent,
-        carry_over=False,
-        wait_for_lock=options.wait_for_lock,
-        stage="ingest",
-    ) as version:
+    # No lost update: the parent is read once the lock is held (the items are entered in
+    # order), and the result is looked for again under it (dancedata.ingest.locked).
+    with (
+        hold_store_lock(store, wait=options.wait_for_lock, create=True) as lock,
+        VersionWriter(
+            store,
+            command=COMMAND,
+            config=config,
+            fingerprint=fp,
+            inputs=list(run.described.values()),
+            parent=latest_version(store),
+            carry_over=False,
+            wait_for_lock=options.wait_for_lock,
+            stage="ingest",
+            lock=lock,
+        ) as version,
+    ):
+        ingested = already_ingested(store, fp)  # by a writer this one waited for
+        if ingested is not None:
+            return ingested
         for item in run.skipped:
             version.skip(item["path"], item["error"])
         _write_arrays(version, seqs, options.up_axis)

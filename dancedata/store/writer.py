@@ -104,11 +104,22 @@ def clean_abandoned_temps(layout: StoreLayout, keep: str | None = None) -> list[
 
 
 @contextmanager
-def hold_store_lock(store: str | Path, *, wait: bool = False) -> Iterator[Any]:
+def hold_store_lock(
+    store: str | Path, *, wait: bool = False, create: bool = False
+) -> Iterator[Any]:
     """Hold the writer lock of an existing store for the block (local or remote); plan the new
     version inside the block and pass the lock to :class:`VersionWriter` (``lock=``), which
-    releases it at commit. Storage failures become one StoreError naming the store."""
+    releases it at commit. ``create``: make an empty store first if there is none (the ingest
+    commands). Storage failures become one StoreError naming the store."""
     layout = StoreLayout(store)
+    if create:
+        try:
+            layout.ensure()  # as VersionWriter does before it locks
+        except OSError as exc:
+            error = storage_error(exc, store, "opening the store for writing")
+            if error is None:
+                raise
+            raise error from None
     layout.read_pointer()  # a clear error for a missing store or a file, before any lock file
     if is_remote(store):
         from dancedata.store.remote import RemoteLock
