@@ -12,8 +12,13 @@ short on the shared machine), over the crossmodal train split's measure windows
   padded into a batch by hand (``torch.nn.utils.rnn.pad_sequence``);
 * dancedata — ``training_loader(ds, 64, bucket=True, num_workers=2)`` (length buckets, padding
   collate with mask and lengths, persistent workers), and the same with ``num_workers=0``;
-* fixed-length windows (``window_frames=128, fit="resample"``: SLERP on rotations) and 4 s
-  sliding windows with a 1 s hop (``SecondsDataset``), 2 workers.
+* fixed-length windows (``window_frames=128, fit="resample"``: SLERP on rotations), 2 and 0
+  workers, and 4 s sliding windows with a 1 s hop (``SecondsDataset``), 2 workers;
+* the transport floor: a DataLoader whose workers only return ready-made zero tensors of a
+  bucketed batch's shape, i.e. the cost of handing a batch between processes.
+
+Besides wall rates it reports the training process's own CPU per batch: what workers take off
+the process that runs the model.
 
 Each loader runs ``--epochs`` passes; the first includes opening the store in each worker
 (reported separately), the rate is over the later passes. The machine is shared: wall rates
@@ -57,16 +62,18 @@ def build_store(path: Path) -> None:
     segment(path, SegmentOptions())
 
 
-def run_epochs(make_batches, epochs: int) -> tuple[float, float, int]:
-    """(first pass seconds, later passes' batches / s, windows per pass)."""
-    times, windows = [], 0
+def run_epochs(make_batches, epochs: int) -> tuple[float, float, float, int]:
+    """(first pass seconds, later passes' batches / s, this process's CPU ms per batch over
+    the later passes, windows per pass)."""
+    times, cpu, windows = [], [], 0
     for _ in range(epochs):
-        start = time.perf_counter()
+        start, cpu0 = time.perf_counter(), time.process_time()
         windows = sum(n for n in make_batches())
         times.append(time.perf_counter() - start)
-    later = sum(times[1:]) or times[0]
-    passes = max(1, epochs - 1)
-    return times[0], passes * windows / BATCH / later, windows
+        cpu.append(time.process_time() - cpu0)
+    later, later_cpu = (sum(times[1:]), sum(cpu[1:])) if epochs > 1 else (times[0], cpu[0])
+    batches = max(1, epochs - 1) * windows / BATCH
+    return times[0], batches / later, 1000 * later_cpu / batches, windows
 
 
 def baseline(store: Path, epochs: int):
@@ -108,6 +115,54 @@ def dancedata_loader(ds, epochs: int, workers: int, bucket: bool = True):
     return run_epochs(batches, epochs)
 
 
+class _Indices:
+    """A dataset of bare indices, for the transport floor."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, i: int) -> int:
+        return i
+
+
+class _ZeroBatch:
+    """A collate returning ready-made zero tensors of one batch's shape (no reading at all)."""
+
+    def __init__(self, frames: int, widths: tuple[int, int]) -> None:
+        self.frames, self.widths = frames, widths
+
+    def __call__(self, items: list[int]) -> dict:
+        import torch
+
+        return {
+            "motion": torch.zeros(len(items), self.frames, self.widths[0]),
+            "audio": torch.zeros(len(items), self.frames, self.widths[1]),
+        }
+
+
+def transport_floor(n: int, frames: int, epochs: int, workers: int):
+    """Batches / s when workers only hand over zero tensors of the batch's shape: the cost of
+    moving a batch between processes (shared memory), which no dataset code can go below."""
+    from torch.utils.data import DataLoader
+
+    loader = DataLoader(
+        _Indices(n),
+        batch_size=BATCH,
+        collate_fn=_ZeroBatch(frames, (225, 35)),
+        num_workers=workers,
+        persistent_workers=workers > 0,
+    )
+
+    def batches():
+        for batch in loader:
+            yield int(batch["motion"].shape[0])
+
+    return run_epochs(batches, epochs)
+
+
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--store", type=Path, default=None)
@@ -126,8 +181,8 @@ def main(argv: list[str]) -> int:
     torch.set_num_threads(1)
     print(f"store {store}; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
     rows = []
-    (first, rate, n), n_windows = baseline(store, args.epochs)
-    rows.append(("baseline: per-item DataLoader(batch_size=1) + pad_sequence", first, rate, n))
+    result, n_windows = baseline(store, args.epochs)
+    rows.append(("baseline: per-item DataLoader(batch_size=1) + pad_sequence", *result))
     ds = MeasureDataset(store, split="train")
     lengths = ds.lengths
     print(
@@ -135,22 +190,33 @@ def main(argv: list[str]) -> int:
         f"{lengths.min()}–{lengths.max()} frames (mean {lengths.mean():.1f})"
     )
     for workers in (2, 0):
-        first, rate, n = dancedata_loader(ds, args.epochs, workers)
-        rows.append((f"dancedata: bucketed, pad_collate, {workers} workers", first, rate, n))
-    first, rate, n = dancedata_loader(ds, args.epochs, 2, bucket=False)
-    rows.append(("dancedata: seeded shuffle, pad_collate, 2 workers", first, rate, n))
+        result = dancedata_loader(ds, args.epochs, workers)
+        rows.append((f"dancedata: bucketed, pad_collate, {workers} workers", *result))
+    result = dancedata_loader(ds, args.epochs, 2, bucket=False)
+    rows.append(("dancedata: seeded shuffle, pad_collate, 2 workers", *result))
     fixed = MeasureDataset(store, split="train", window_frames=128, fit="resample")
-    first, rate, n = dancedata_loader(fixed, args.epochs, 2, bucket=False)
-    rows.append(("dancedata: window_frames=128 resample (SLERP), 2 workers", first, rate, n))
+    for workers in (2, 0):
+        result = dancedata_loader(fixed, args.epochs, workers, bucket=False)
+        rows.append((f"dancedata: window_frames=128 resample (SLERP), {workers} workers", *result))
     sliding = SecondsDataset(store, split="train", seconds=4.0, hop_seconds=1.0)
-    first, rate, n = dancedata_loader(sliding, args.epochs, 2, bucket=False)
-    rows.append(("dancedata: 4 s windows, 1 s hop, 2 workers", first, rate, n))
+    result = dancedata_loader(sliding, args.epochs, 2, bucket=False)
+    rows.append(("dancedata: 4 s windows, 1 s hop, 2 workers", *result))
+
+    frames = int(np.mean([lengths[b].max() for b in bucket_batches(lengths, BATCH)]))
+    for workers in (2, 0):
+        result = transport_floor(len(ds), frames, args.epochs, workers)
+        rows.append(
+            (f"floor: ready-made zero batches (B, {frames}, 225 + 35), {workers} workers", *result)
+        )
 
     base = rows[0][2]
-    print(f"\n| loader | windows / pass | first pass s | batches of {BATCH} / s | × baseline |")
-    print("|---|---:|---:|---:|---:|")
-    for name, first, rate, n in rows:
-        print(f"| {name} | {n} | {first:.2f} | {rate:.1f} | ×{rate / base:.1f} |")
+    print(
+        f"\n| loader | windows / pass | first pass s | batches of {BATCH} / s | × baseline "
+        "| main-process CPU ms / batch |"
+    )
+    print("|---|---:|---:|---:|---:|---:|")
+    for name, first, rate, cpu_ms, n in rows:
+        print(f"| {name} | {n} | {first:.2f} | {rate:.1f} | ×{rate / base:.2f} | {cpu_ms:.1f} |")
 
     def overhead(batches) -> float:
         padded = sum(int(lengths[b].max()) * len(b) for b in batches)
