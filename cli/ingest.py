@@ -74,4 +74,8 @@ def ingest_aist_cmd(
         wait_for_lock=wait,
         workers=workers,
     )
-    report(ingest_aist(store, raw, options), "ingest aist", as_json, store=str(store))
+    from dancedata.store.first_write import remove_store_if_left_empty
+
+    with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
+        result = ingest_aist(store, raw, options)
+    report(result, "ingest aist", as_json, store=str(store))

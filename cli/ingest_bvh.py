@@ -97,5 +97,8 @@ def ingest_bvh_cmd(
         on_error=on_error.value,
         wait_for_lock=wait,
     )
-    result = ingest_bvh(store, list(paths or []), options)
+    from dancedata.store.first_write import remove_store_if_left_empty
+
+    with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
+        result = ingest_bvh(store, list(paths or []), options)
     report(result, "ingest bvh", as_json, store=str(store))

@@ -158,7 +158,10 @@ def ingest_video_cmd(
         on_error=on_error.value,
         wait_for_lock=wait,
     )
-    result = ingest_video(store, videos, options)
+    from dancedata.store.first_write import remove_store_if_left_empty
+
+    with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
+        result = ingest_video(store, videos, options)
     report(result, "ingest video", as_json, store=str(store))
     if not as_json:
         for line in _notes(result.counts.get("videos", {})):

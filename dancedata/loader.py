@@ -133,7 +133,41 @@ class DanceStore:
         if not any(r["scheme"] == scheme for r in rows):
             schemes = sorted({r["scheme"] for r in rows})
             raise StoreError(f"no split scheme {scheme!r} in this store (have {schemes})")
-        return [s for s in self._seq_rows if s in chosen]
+        found = [s for s in self._seq_rows if s in chosen]
+        if not found:  # loud, not empty: a typo or an empty split is never an empty dataset
+            raise StoreError(self._empty_split_reason(split, scheme, rows), self.path)
+        return found
+
+    def _empty_split_reason(self, split: str, scheme: str, rows: list[dict[str, Any]]) -> str:
+        """Why ``split`` of ``scheme`` has no sequences: unknown name, or what its file listed."""
+        names = sorted({r["split"] for r in rows if r["scheme"] == scheme})
+        listed = self._split_file_counts(scheme)
+        if split not in names and split not in listed:
+            return f"no split {split!r} in scheme {scheme!r} (splits: {', '.join(names)})"
+        text = f"split {split!r} of scheme {scheme!r} has no sequences in version {self.version}"
+        counts = listed.get(split)
+        if isinstance(counts, dict) and "listed" in counts:
+            text += (
+                f" (its split file lists {counts['listed']}, {counts.get('ignored', 0)} of them "
+                f"on the ignore list, {counts.get('in_store', 0)} in the store)"
+            )
+        return text
+
+    def _split_file_counts(self, scheme: str) -> dict[str, Any]:
+        """Per split of ``scheme``, the counts ingest recorded for its split file ({} if none)."""
+        layout, current, seen = self._reader.layout, self.version, set()
+        while current and current not in seen:
+            seen.add(current)
+            try:
+                manifest = layout.read_manifest(current)
+            except StoreError:
+                return {}
+            files = (manifest.get("counts") or {}).get("splits")
+            if isinstance(files, dict):
+                schemes = files.get("schemes") or {}
+                return schemes.get(scheme) or {} if isinstance(schemes, dict) else {}
+            current = manifest.get("parent")
+        return {}
 
     # -- arrays --------------------------------------------------------------------------------
     def zarr(self, name: str) -> zarr.Array:
@@ -168,10 +202,33 @@ class DanceStore:
         row = self.sequence(seq_id)
         n = self.audio_frames(seq_id)
         if n == 0:
-            raise StoreError(f"sequence {seq_id} has no music", self.path)
+            raise StoreError(self._no_music_reason(seq_id), self.path)
         track = self._music_rows[row["music_id"]]
         start = track["frame_start"] + int(row["audio_offset"])
         return self._full(f"audio/{name}")[start : start + n]
+
+    def _no_music_reason(self, seq_id: str) -> str:
+        """Why ``seq_id`` has no audio frames, in the words of the sequences table."""
+        row = self.sequence(seq_id)
+        music_id = row.get("music_id")
+        if not self._music_rows:
+            return f"sequence {seq_id} has no audio: this store has no music"
+        if music_id is None:
+            return f"sequence {seq_id} has no music_id (its source named no music)"
+        if row.get("music_missing"):
+            return f"sequence {seq_id} has no audio: its music {music_id} was missing at ingest"
+        if music_id not in self._music_rows:
+            return f"sequence {seq_id}: its music {music_id} is not in the music table"
+        return f"sequence {seq_id} has no audio frames after its audio_offset"
+
+    def music_summary(self) -> str | None:
+        """None when every sequence has music, else a phrase saying how many have none."""
+        without = [s for s in self._seq_rows if self.audio_frames(s) == 0]
+        if not without:
+            return None
+        if not self._music_rows:
+            return f"this store has no music ({len(self._seq_rows)} sequences, 0 tracks)"
+        return f"{len(without)} of {len(self._seq_rows)} sequences have no music"
 
     def view(self, seq_id: str, name: str) -> np.ndarray:
         """A derived layout as float32 (frames, D): fact_motion_225, thesis_euler_75,
@@ -213,6 +270,13 @@ class DanceStore:
                 f": this store holds no joint rotations (sources: {', '.join(sources)}; motion "
                 f"arrays: {', '.join(held) or 'none'}), so featurize cannot derive them; read "
                 "the stored arrays with motion(seq_id, name) instead"
+            )
+        elif name not in MOTION_VIEWS and not self._music_rows:
+            sources = sorted({str(r.get("source")) for r in self._seq_rows.values()})
+            message += (
+                f": this store has no music (sources: {', '.join(sources)}; 0 music tracks), so "
+                "there are no audio features to compute; ingest the music with the motion "
+                "(--music-dir, --music), or read motion only (audio=None)"
             )
         else:
             message += " (run `dancedata featurize`)"
@@ -369,3 +433,32 @@ class DanceStore:
 def open_store(path: str | Path, version: str | None = None) -> DanceStore:
     """Open ``version`` (default: the latest committed) of the store at ``path``."""
     return DanceStore(path, version)
+
+
+def check_window_count(
+    store: DanceStore, split: str | None, scheme: str, with_audio: bool, count: int
+) -> None:
+    """Loud, not empty (for the window datasets): a StoreError naming the reason when ``split``
+    yields no windows, and a one-line warning on stderr when audio windows leave out sequences
+    of the split that have no music."""
+    from dancedata.store.layout import warn_once
+
+    seq_ids = store.seq_ids(split, scheme)  # an unknown or empty split is an error there
+    silent = [s for s in seq_ids if store.audio_frames(s) == 0] if with_audio else []
+    where = f"split {split!r} of scheme {scheme!r}" if split else "the store"
+    if count == 0:
+        if silent and len(silent) == len(seq_ids):
+            first = store._no_music_reason(silent[0])
+            reason = (
+                f"none of its {len(seq_ids)} sequences has music ({first}); read motion only "
+                "with audio=None"
+            )
+        else:
+            reason = f"none of its {len(seq_ids)} sequences is long enough for one window"
+        raise StoreError(f"no windows in {where}, version {store.version}: {reason}", store.path)
+    if silent:
+        warn_once(
+            f"{store.path}: audio windows leave out {len(silent)} of {len(seq_ids)} sequences of "
+            f"{where} that have no music (e.g. {store._no_music_reason(silent[0])}); "
+            "audio=None keeps them"
+        )

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from dancedata.loader import DanceStore, MeasureWindow
+from dancedata.loader import DanceStore, MeasureWindow, check_window_count
 from dancedata.window_dataset import WindowSource
 
 
@@ -130,6 +130,7 @@ class MeasureDataset(_WindowDataset):
             kind="measures", n_measures=n_measures, hop_measures=hop_measures,
             window_frames=window_frames, fit=fit,
         )  # fmt: skip
+        check_window_count(self.source.store, split, scheme, audio is not None, len(self.source))
 
 
 class SecondsDataset(_WindowDataset):
@@ -157,3 +158,4 @@ class SecondsDataset(_WindowDataset):
             kind="seconds", seconds=seconds, hop_seconds=hop_seconds,
             window_frames=window_frames, fit=fit,
         )  # fmt: skip
+        check_window_count(self.source.store, split, scheme, audio is not None, len(self.source))

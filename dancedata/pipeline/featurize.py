@@ -24,7 +24,7 @@ import numpy as np
 from dancedata._version import __version__
 from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.compute.motion_representations import REPRESENTATIONS
-from dancedata.errors import InputError
+from dancedata.errors import InputError, StoreError
 from dancedata.exec.executors import make_executor
 from dancedata.exec.units import Job, UnitReport, run_units
 from dancedata.ingest.result import CommandResult
@@ -58,7 +58,7 @@ from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter, create_checke
 from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
 from dancedata.store.fs import is_remote
-from dancedata.store.layout import StoreLayout
+from dancedata.store.layout import StoreLayout, warn_once
 from dancedata.store.reader import VersionReader
 from dancedata.store.writer import (
     VersionWriter,
@@ -202,6 +202,7 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
     motion_specs = [s for f in motion_families for s in f.arrays(n_joints, settings)]
     families = [FAMILIES[name] for name in options.audio_family_names()] if options.audio else []
     audio_specs = [spec for f in families for spec in f.arrays(audio_cfg, options.audio_settings)]
+    check_work(options, bool(motion_specs), bool(audio_specs), bool(music_inputs.rows), store)
     with VersionWriter(
         store,
         command="featurize",
@@ -282,6 +283,35 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
             )
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts)
+
+
+def check_work(
+    options: FeaturizeOptions, motion: bool, audio: bool, music: bool, store: str | Path
+) -> None:
+    """Loud, not empty: a StoreError (nothing written) when this run would compute no array
+    (``motion``/``audio``: arrays planned; ``music``: the store has tracks), and a one-line
+    warning when audio features were asked for but the store has no music."""
+    if audio and not music and motion:
+        warn_once(f"featurize: {store} has no music, so no audio features are computed")
+    if motion or (audio and music):
+        return
+    reasons = []
+    if not options.motion:
+        reasons.append("motion is off (--no-motion)")
+    elif options.motion_families:
+        reasons.append(
+            f"the motion families {', '.join(options.motion_families)} need arrays this store "
+            "lacks"
+        )
+    else:
+        reasons.append("no motion family was asked for")
+    if not options.audio:
+        reasons.append("audio is off (--no-audio)")
+    elif not music:
+        reasons.append("the store has no music")
+    else:
+        reasons.append("no audio family was asked for")
+    raise StoreError(f"featurize computes nothing, nothing written: {'; '.join(reasons)}", store)
 
 
 def _music_inputs(

@@ -8,11 +8,11 @@ from typing import Any
 
 from dancedata._version import __version__
 from dancedata.compute.measures import measure_bounds
-from dancedata.errors import InputError
+from dancedata.errors import InputError, StoreError
 from dancedata.ingest.result import CommandResult
 from dancedata.store.checksums import fingerprint
 from dancedata.store.contract import build_table
-from dancedata.store.layout import StoreLayout
+from dancedata.store.layout import StoreLayout, warn_once
 from dancedata.store.reader import VersionReader
 from dancedata.store.writer import (
     VersionWriter,
@@ -63,6 +63,32 @@ def measure_rows(sequences: list[dict[str, Any]], options: SegmentOptions) -> li
     return rows
 
 
+def check_measures(sequences: list[dict[str, Any]], rows: list[dict[str, Any]], where: str) -> None:
+    """Loud, not empty: StoreError when no sequence yields a measure (no BPM, or all shorter
+    than one measure), so no version without measures is written; a one-line warning when
+    some sequences have no BPM and so no measures."""
+    no_bpm = [s["seq_id"] for s in sequences if not (s.get("bpm") is not None and s["bpm"] > 0)]
+    if not rows:
+        if not sequences:
+            reason = "the store has no sequences"
+        elif len(no_bpm) == len(sequences):
+            reason = (
+                f"none of its {len(sequences)} sequences has a BPM (pass --bpm to the ingest, "
+                "or ingest music with a known tempo)"
+            )
+        else:
+            reason = (
+                f"{len(sequences) - len(no_bpm)} sequences have a BPM but none is as long as one "
+                "measure" + (f", and {len(no_bpm)} have no BPM" if no_bpm else "")
+            )
+        raise StoreError(f"no measures, nothing written: {reason}", where)
+    if no_bpm:
+        warn_once(
+            f"segment: {len(no_bpm)} of {len(sequences)} sequences have no BPM and get no "
+            f"measures (e.g. {no_bpm[0]})"
+        )
+
+
 def segment(store: str | Path, options: SegmentOptions) -> CommandResult:
     """Write the measures table as a new version derived from ``options.version`` (default:
     the latest version, as it is once this writer holds the store lock)."""
@@ -83,7 +109,9 @@ def _segment_locked(store: str | Path, options: SegmentOptions, lock: Any) -> Co
     existing = already_done(store, fp, reader.manifest, "segment")
     if existing is not None:
         return CommandResult(version=existing, created=False)
-    rows = measure_rows(reader.table("sequences").to_pylist(), options)
+    sequences = reader.table("sequences").to_pylist()
+    rows = measure_rows(sequences, options)
+    check_measures(sequences, rows, str(store))
     with VersionWriter(
         store,
         command="segment",
