@@ -7,8 +7,9 @@ quaternion SLERP (§3.1, ``dancedata.experiments.inbetween.linear_slerp``), in t
 
 Measures differ in length (14400/BPM frames). Batching is done here, in :func:`collate`: each
 batch is padded to its longest window with zeros and a key-padding mask; a window longer than
-the model's ``max_len`` is cropped to its first ``max_len`` frames for training (reported by
-:func:`load_windows`). The library has no batching of its own yet.
+the model's ``max_len`` is cropped to its first ``max_len`` frames for training (counted by
+``train.py``). The library's ``dancedata.torch_batching.pad_collate`` pads motion and audio the
+same way; this collate exists because each item also carries its precomputed X_lin and target.
 """
 
 from __future__ import annotations
@@ -76,7 +77,7 @@ def load_windows(
             Window(
                 item["seq_id"],
                 int(item["measure"]),
-                int(dataset.windows[i].frame_start),
+                int(item["frame_start"]),
                 motion.astype(np.float32),
                 x_lin.astype(np.float32),
                 item["genre"].numpy().astype(np.float32),
