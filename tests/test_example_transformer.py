@@ -207,3 +207,46 @@ def test_bad_checkpoint_is_one_error_line(store: Path, tmp_path: Path) -> None:
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and "bogus.pt" in lines[0]
     assert not list((tmp_path / "o").glob("*.npy")) if (tmp_path / "o").exists() else True
+
+
+def _example_model():
+    """examples/inbetween_transformer/model.py, imported under a name no test module uses."""
+    import importlib.util
+
+    name = "inbetween_example_model"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, EXAMPLE / "model.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # dataclasses look their module up there
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+@pytest.mark.parametrize(
+    "variant", ["motion", "genre", "merged_full", "merged_drum", "cross_full", "cross_drum"]
+)
+def test_every_variant_starts_at_x_lin_and_ignores_padding(variant: str) -> None:
+    """Untrained: residual exactly 0 (the output layer starts at zero). With random output
+    weights, the real frames' output does not depend on how much padding follows them."""
+    import torch
+
+    m = _example_model()
+    torch.manual_seed(0)
+    cfg = m.ModelConfig(variant=variant, d_model=16, layers=1, heads=2, ffn=32, dropout=0.0,
+                        max_len=40, genre_dim=6, audio_dim=22)  # fmt: skip
+    model = m.InbetweenTransformer(cfg).eval()
+    x = torch.randn(2, 30, 225)
+    genre = torch.eye(6)[:2]
+    audio = torch.randn(2, 30, 22)
+    pad = torch.zeros(2, 30, dtype=torch.bool)
+    pad[1, 20:] = True
+    with torch.no_grad():
+        assert not model(x, pad, genre, audio).any()
+        torch.nn.init.normal_(model.output.weight)
+        full = model(x, pad, genre, audio)
+        short = model(x[1:, :20], pad[1:, :20], genre[1:], audio[1:, :20])
+    assert full.shape == (2, 30, 225) and not full[..., :6].any()
+    torch.testing.assert_close(full[1, :20], short[0], atol=1e-4, rtol=1e-4)
+    with pytest.raises(ValueError, match="max_len"):
+        model(torch.zeros(1, 41, 225), torch.zeros(1, 41, dtype=torch.bool), genre[:1],
+              torch.zeros(1, 41, 22))  # fmt: skip
