@@ -93,6 +93,12 @@ class WindowSource:
             )
         else:
             raise InputError(f"kind must be 'measures' or 'seconds' (got {kind!r})")
+        if not len(self.spans) and (kind == "seconds" or n_measures > 1):
+            what = f"{seconds} s" if kind == "seconds" else f"{n_measures}-measure"
+            raise InputError(
+                f"no {what} windows in split {split!r} of {self.path} (version {self.version}):"
+                " no sequence (with music, when an audio view is asked for) is long enough"
+            )
         if window_frames is not None and fit == "pad" and len(self.spans):
             longest = int(self.spans.length.max())
             if longest > window_frames:

@@ -274,6 +274,13 @@ def test_n_measure_windows_cover_brute_force_ranges(store, opened, n, hop) -> No
     np.testing.assert_array_equal(ds[i]["audio"].numpy(), opened.view(seq, "fact_audio_35")[a:b])
 
 
+def test_windows_longer_than_every_sequence_are_an_error_not_an_empty_dataset(store) -> None:
+    with pytest.raises(InputError, match="no 3600.0 s windows in split 'train'"):
+        SecondsDataset(store, split="train", seconds=3600.0)
+    with pytest.raises(InputError, match="no 500-measure windows"):
+        MeasureDataset(store, split="train", n_measures=500)
+
+
 def test_measure_groups_skip_gaps() -> None:
     seqs = ["a"] * 5 + ["b"] * 2
     measures = [0, 1, 2, 4, 5, 0, 1]
