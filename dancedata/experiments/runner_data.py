@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -51,9 +52,9 @@ class SplitData:
         """(M,) compact row of each measure's first frame."""
         return self.seq_offset[self.measure_seq] + self.local_start
 
-    @property
+    @cached_property
     def x75(self) -> np.ndarray:
-        """(F, 75) ``thesis_euler_75`` rows: trans (m) + Euler (rad)."""
+        """(F, 75) ``thesis_euler_75`` rows: trans (m) + Euler (rad) (built once)."""
         return np.concatenate([self.trans, self.euler.reshape(len(self.euler), -1)], axis=1)
 
     @property
