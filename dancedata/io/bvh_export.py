@@ -12,7 +12,9 @@ Two layouts:
   (``source_units``) unless told otherwise.
 * **generated** (SMPL / AIST++ stores, and any skeleton without a channel layout): every joint
   gets three rotation channels in one order (default ZYX), the root also X/Y/Z position.
-  OFFSETs come from the skeleton attrs when they hold any, else, for SMPL-24, from an SMPL model
+  OFFSETs come from the skeleton attrs when they hold any, else from ``motion/ik_rest_offsets``
+  (rotations solved from joint positions by ``featurize --motion-families
+  rotations_from_positions``; joints written parents first), else, for SMPL-24, from an SMPL model
   file's rest joints (betas 0) or, without one, from the rounded mean-adult rest skeleton
   :data:`dancedata.smpl.SMPL_REST_OFFSETS_M` (approximate; the result says so). The root's
   position channels hold ``rest root + trans``. Default unit: centimetres.
@@ -31,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from dancedata.compute.fk import topological_order
 from dancedata.compute.rotations import axis_angle_to_rotmat
 from dancedata.errors import InputError, StoreError
 from dancedata.io.bvh import (
@@ -144,7 +147,13 @@ def _array(reader: VersionReader, name: str, f0: int, f1: int) -> np.ndarray:
     if not reader.has_array(f"motion/{name}"):
         raise StoreError(
             f"version {reader.version} has no motion/{name}; BVH export needs joint rotations "
-            "(motion/axis_angle) and the root translation (motion/trans)",
+            "(motion/axis_angle) and the root translation (motion/trans)"
+            + (
+                "; solve them from the joint positions first: dancedata featurize STORE "
+                "--motion-families rotations_from_positions"
+                if reader.has_array("motion/positions")
+                else ""
+            ),
             reader.path,
         )
     return np.asarray(reader.array(f"motion/{name}")[f0:f1], dtype=np.float64)
@@ -192,7 +201,17 @@ def _generated_clip(
         raise StoreError(
             f"motion/axis_angle has {axis_angle.shape[1]} joints, skeleton {len(names)}"
         )
-    offsets, source = _rest_offsets(skel_attrs, options.smpl_model)
+    if skel_attrs.get("offsets") is None and reader.has_array("motion/ik_rest_offsets"):
+        # rotations solved from positions (rotations_from_positions): the sequence's own rest
+        # skeleton, and joints put parents first (BODY_25 / COCO-18 are not)
+        offsets = np.asarray(reader.array("motion/ik_rest_offsets")[f0], dtype=np.float64)
+        source = "rest skeleton solved from positions (motion/ik_rest_offsets)"
+        order = topological_order(parents)
+        where = {j: k for k, j in enumerate(order)}
+        names, offsets, axis_angle = [names[j] for j in order], offsets[order], axis_angle[:, order]
+        parents = [-1 if parents[j] < 0 else where[parents[j]] for j in order]
+    else:
+        offsets, source = _rest_offsets(skel_attrs, options.smpl_model)
     skel: BvhSkeleton = make_skeleton(names, parents, offsets, options.rotation_order, True)
     n = trans.shape[0]
     translations = np.broadcast_to(offsets, (n, len(names), 3)).copy()

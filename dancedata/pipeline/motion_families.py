@@ -125,6 +125,7 @@ class RotationsFamily(MotionFamily):
 
 def _more_families() -> dict[str, MotionFamily]:
     """Families defined in their own modules (duck-typed MotionFamily, so no import cycle)."""
+    from dancedata.pipeline.motion_families_ik import RotationsFromPositionsFamily
     from dancedata.pipeline.motion_families_kinematics import (
         AngularFamily,
         GeometricFamily,
@@ -132,7 +133,13 @@ def _more_families() -> dict[str, MotionFamily]:
     )
     from dancedata.pipeline.motion_families_positions import PositionsFamily
 
-    families = (PositionsFamily(), KinematicsFamily(), AngularFamily(), GeometricFamily())
+    families = (
+        PositionsFamily(),
+        KinematicsFamily(),
+        AngularFamily(),
+        GeometricFamily(),
+        RotationsFromPositionsFamily(),
+    )
     return {family.name: family for family in families}  # type: ignore[misc]
 
 
