@@ -250,3 +250,31 @@ def test_every_variant_starts_at_x_lin_and_ignores_padding(variant: str) -> None
     with pytest.raises(ValueError, match="max_len"):
         model(torch.zeros(1, 41, 225), torch.zeros(1, 41, dtype=torch.bool), genre[:1],
               torch.zeros(1, 41, 22))  # fmt: skip
+
+
+def test_frames_before_the_first_measure_hold_the_first_keyframe(
+    store: Path, tmp_path: Path
+) -> None:
+    """With a downbeat phase of 17 frames no measure covers frames 0…16: the file still starts
+    at the sequence's frame 0, those frames hold the first keyframe, and the manifest counts
+    them."""
+    import shutil
+
+    import dancedata
+    from dancedata.pipeline.segment import SegmentOptions, segment
+
+    copy = tmp_path / "store"
+    shutil.copytree(store, copy)
+    segment(copy, SegmentOptions(phase_frames=17))
+    out = tmp_path / "out"
+    script("generate.py", copy, "--baseline", "--keyframes", 3, "--split", "test", "--out", out)
+    ds = dancedata.open_store(copy)
+    ends = measure_ends(copy, "test")
+    manifest = json.loads((out / "generated.json").read_text())
+    for seq_id, end in ends.items():
+        rows = np.load(out / f"{seq_id}.npy")
+        truth = ds.view(seq_id, "fact_motion_225")
+        assert rows.shape == (end, 225)
+        np.testing.assert_allclose(rows[:17], np.repeat(truth[17:18], 17, axis=0), atol=1e-5)
+        np.testing.assert_allclose(rows[17], truth[17], atol=1e-5)
+        assert manifest["written"][seq_id]["baseline_frames"] == 17
