@@ -94,6 +94,12 @@ class _WindowDataset:
         """Per view, which columns ``fit="resample"`` resamples how (dancedata.window_fit)."""
         return self.source.resampling
 
+    def preload(self) -> _WindowDataset:
+        """Read the views now, so that forked data-loader workers share them (see
+        :meth:`WindowSource.preload`); returns the dataset."""
+        self.source.preload()
+        return self
+
     def __getitem__(self, index: int) -> dict[str, Any]:
         torch = _torch()
         item = self.source.item(index)

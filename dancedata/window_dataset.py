@@ -146,6 +146,13 @@ class WindowSource:
             self._views, self._offsets = views, offsets
         return self._views, self._offsets
 
+    def preload(self) -> WindowSource:
+        """Read the views into this process now. Before a DataLoader starts ``fork`` workers,
+        this makes them share one copy of the arrays (copy-on-write) instead of each reading
+        its own; with ``spawn`` it does not help (the pickle carries no arrays)."""
+        self._ensure_views()
+        return self
+
     # -- windows -------------------------------------------------------------------------------
     def __len__(self) -> int:
         return len(self.spans)

@@ -367,6 +367,8 @@ def test_two_workers_give_the_same_batches_as_none(store) -> None:
     for bucket in (True, False):
         serial_loader = training_loader(ds, 8, seed=3, bucket=bucket, num_workers=0)
         forked_loader = training_loader(ds, 8, seed=3, bucket=bucket, num_workers=2)
+        if not bucket:
+            ds.preload()  # forked workers then share the parent's arrays
         epochs = []
         for _ in range(2):  # persistent workers; the sampler's epoch advances per pass
             serial, forked = _batches(serial_loader), _batches(forked_loader)
