@@ -130,8 +130,13 @@ def segment(
     store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
     beats_per_measure: Annotated[int, typer.Option(min=1, help="Beats in one measure.")] = 4,
     phase: Annotated[
-        float, typer.Option(help="Downbeat offset in frames (0: the sequence starts on one).")
-    ] = 0.0,
+        str,
+        typer.Option(
+            help="Downbeat offset in frames (0, the default: every sequence starts on one, as "
+            "FACT and the thesis cut), or 'auto': estimated per music track from its onset "
+            "strength, tracked beats and chroma (needs featurize; docs/STORE.md)."
+        ),
+    ] = "0",
     version: VersionOpt = None,
     wait: Wait = False,
     quiet: Quiet = False,
@@ -143,10 +148,25 @@ def segment(
     from dancedata.pipeline.segment import SegmentOptions
     from dancedata.pipeline.segment import segment as run
 
+    phase_auto = phase.strip().lower() == "auto"
+    try:
+        phase_frames = 0.0 if phase_auto else float(phase)
+    except ValueError:
+        raise typer.BadParameter(
+            f"{phase!r}: a number of frames or 'auto'", param_hint="--phase"
+        ) from None
     options = SegmentOptions(
         beats_per_measure=beats_per_measure,
-        phase_frames=phase,
+        phase_frames=phase_frames,
         version=version,
         wait_for_lock=wait,
+        phase_auto=phase_auto,
     )
-    report(run(store, options), "segment", as_json, store=str(store))
+    result = run(store, options)
+    report(result, "segment", as_json, store=str(store))
+    if not as_json and not quiet:
+        for music_id, track in sorted((result.counts.get("phase") or {}).items()):
+            typer.echo(
+                f"  {music_id}: downbeat at frame {track['phase_frames']:.2f} "
+                f"({track['phase_s']:.3f} s; phase moved from 0 by that much)"
+            )

@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import Any
 
 from dancedata._version import __version__
-from dancedata.compute.measures import measure_bounds
+from dancedata.compute.downbeat import method_config
+from dancedata.compute.measures import measure_grid
 from dancedata.errors import InputError, StoreError
 from dancedata.ingest.result import CommandResult
 from dancedata.store.checksums import fingerprint
@@ -28,26 +29,42 @@ class SegmentOptions:
     phase_frames: float = 0.0
     version: str | None = None
     wait_for_lock: bool = False
+    # --phase auto: each sequence's downbeat phase estimated from its music's features
+    # (dancedata.compute.downbeat); phase_frames is then unused.
+    phase_auto: bool = False
 
     def config(self) -> dict[str, Any]:
-        return {
+        # A numeric phase keeps the config (and so the fingerprint) it always had.
+        config: dict[str, Any] = {
             "beats_per_measure": self.beats_per_measure,
-            "phase_frames": self.phase_frames,
+            "phase_frames": "auto" if self.phase_auto else self.phase_frames,
             "formula": "fpm = 60/bpm*beats_per_measure*fps; "
             "[floor(phase+k*fpm+0.5), floor(phase+(k+1)*fpm+0.5)), complete measures only",
         }
+        if self.phase_auto:
+            config["phase_method"] = method_config(self.beats_per_measure)
+        return config
 
 
-def measure_rows(sequences: list[dict[str, Any]], options: SegmentOptions) -> list[dict[str, Any]]:
-    """One row per complete measure of every sequence with a known BPM."""
+def measure_rows(
+    sequences: list[dict[str, Any]],
+    options: SegmentOptions,
+    phases: dict[str, float] | None = None,
+) -> list[dict[str, Any]]:
+    """One row per complete measure of every sequence with a known BPM. ``phases`` (frames,
+    per seq_id; --phase auto) overrides ``options.phase_frames`` and adds ``phase_frames``.
+    ``time_start``/``time_stop`` are the whole-frame bounds in seconds; ``time_start_exact``/
+    ``time_stop_exact`` the measure's unrounded boundaries (phase + k·fpm) / fps."""
     rows: list[dict[str, Any]] = []
     for seq in sequences:
         bpm, fps = seq.get("bpm"), float(seq["fps"])
         if bpm is None or not bpm > 0:
             continue
-        bounds = measure_bounds(
-            int(seq["n_frames"]), float(bpm), fps, options.beats_per_measure, options.phase_frames
+        phase = options.phase_frames if phases is None else phases.get(seq["seq_id"], 0.0)
+        bounds, exact = measure_grid(
+            int(seq["n_frames"]), float(bpm), fps, options.beats_per_measure, phase
         )
+        exact_s = (exact / fps).tolist()
         for k, (start, stop) in enumerate(bounds.tolist()):
             rows.append(
                 {
@@ -58,6 +75,9 @@ def measure_rows(sequences: list[dict[str, Any]], options: SegmentOptions) -> li
                     "time_start": start / fps,
                     "time_stop": stop / fps,
                     "bpm": float(bpm),
+                    "time_start_exact": exact_s[k][0],
+                    "time_stop_exact": exact_s[k][1],
+                    **({} if phases is None else {"phase_frames": float(phase)}),
                 }
             )
     return rows
@@ -110,7 +130,12 @@ def _segment_locked(store: str | Path, options: SegmentOptions, lock: Any) -> Co
     if existing is not None:
         return CommandResult(version=existing, created=False)
     sequences = reader.table("sequences").to_pylist()
-    rows = measure_rows(sequences, options)
+    phases = tracks = None
+    if options.phase_auto:
+        from dancedata.pipeline.segment_phase import downbeat_phases
+
+        phases, tracks = downbeat_phases(reader, sequences, options.beats_per_measure)
+    rows = measure_rows(sequences, options, phases)
     check_measures(sequences, rows, str(store))
     with VersionWriter(
         store,
@@ -132,5 +157,7 @@ def _segment_locked(store: str | Path, options: SegmentOptions, lock: Any) -> Co
             "units": 1,
             "resumed_units": 0,
         }
+        if tracks is not None:  # per music track: where beat 1 fell (the phase moved from 0)
+            counts["phase"] = tracks
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts)
