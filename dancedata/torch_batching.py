@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from torch.utils.data import DataLoader, Sampler
+from torch.utils.data import BatchSampler, DataLoader, Sampler
 
 from dancedata.batching import bucket_batches, epoch_permutation, lengths_mask, padded_length
 
@@ -145,6 +145,25 @@ class LengthBucketSampler(Sampler[list[int]]):
         self.epoch += 1
 
 
+class BatchReads:
+    """A dataset whose items are whole batches: ``reads[indices]`` is ``dataset.batch(indices)``
+    (padded, one copy per window). Used with ``DataLoader(reads, sampler=<batch sampler>,
+    batch_size=None)``, so workers build batches without a per-item step."""
+
+    def __init__(self, dataset: Any, multiple_of: int = 1) -> None:
+        self.dataset, self.multiple_of = dataset, multiple_of
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, indices: list[int]) -> dict[str, Any]:
+        return self.dataset.batch(list(indices), self.multiple_of)
+
+
+def _as_is(batch: Any) -> Any:
+    return batch
+
+
 def training_loader(
     dataset: Any,
     batch_size: int,
@@ -158,28 +177,31 @@ def training_loader(
     **loader_kwargs: Any,
 ) -> DataLoader:
     """A DataLoader over a window dataset with padding collate and a seeded order: a plain
-    seeded shuffle, or length buckets with ``bucket=True``. Extra keywords go to DataLoader
-    (e.g. ``persistent_workers=True``, ``pin_memory=True``)."""
-    collate = pad_collate if collate_fn is None else collate_fn
+    seeded shuffle, or length buckets with ``bucket=True``. Batches are as
+    :func:`pad_collate` makes them; without a ``collate_fn`` they are read whole through
+    ``dataset.batch`` (:class:`BatchReads`) when the dataset has it. Extra keywords go to
+    DataLoader (e.g. ``pin_memory=True``); workers persist between epochs by default."""
     if num_workers > 0:
         loader_kwargs.setdefault("persistent_workers", True)
     if bucket:
-        sampler = LengthBucketSampler(
+        batches: Sampler = LengthBucketSampler(
             dataset.lengths, batch_size, seed=seed, max_spread=max_spread, drop_last=drop_last
         )
+    else:
+        batches = BatchSampler(SeededShuffleSampler(len(dataset), seed), batch_size, drop_last)
+    if collate_fn is None and hasattr(dataset, "batch"):
         return DataLoader(
-            dataset,
-            batch_sampler=sampler,
-            collate_fn=collate,
+            BatchReads(dataset),
+            sampler=batches,
+            batch_size=None,
+            collate_fn=_as_is,
             num_workers=num_workers,
             **loader_kwargs,
         )
     return DataLoader(
         dataset,
-        batch_size=batch_size,
-        sampler=SeededShuffleSampler(len(dataset), seed),
-        collate_fn=collate,
+        batch_sampler=batches,
+        collate_fn=pad_collate if collate_fn is None else collate_fn,
         num_workers=num_workers,
-        drop_last=drop_last,
         **loader_kwargs,
     )

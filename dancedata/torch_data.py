@@ -100,6 +100,17 @@ class _WindowDataset:
         self.source.preload()
         return self
 
+    def batch(self, indices: list[int], multiple_of: int = 1) -> dict[str, Any]:
+        """Windows ``indices`` as one padded batch of tensors, equal to
+        ``pad_collate([self[i] for i in indices])`` but built in one copy per window
+        (:meth:`WindowSource.batch`); ``torch_batching.training_loader`` reads through it."""
+        torch = _torch()
+        out = self.source.batch(indices, multiple_of)
+        for key, value in out.items():
+            if isinstance(value, np.ndarray):
+                out[key] = torch.from_numpy(value)
+        return out
+
     def __getitem__(self, index: int) -> dict[str, Any]:
         torch = _torch()
         item = self.source.item(index)

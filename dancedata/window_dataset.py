@@ -184,6 +184,54 @@ class WindowSource:
             out["audio"] = views["audio"].rows(audio0 + start, audio0 + start + length)
         return out
 
+    def batch(self, indices: list[int], multiple_of: int = 1) -> dict[str, Any]:
+        """Windows ``indices`` as one padded batch, the numpy form of
+        ``torch_batching.pad_collate([item(i) for i in indices])``: seq_id (list), measure,
+        frame_start, lengths (B,) int64, genre (B, G), motion / audio (B, T, D) float32 zero
+        after each window's end, mask (B, T) bool. Without ``window_frames`` each view part is
+        copied once, straight into its place in the batch."""
+        from dancedata.batching import lengths_mask, padded_length
+
+        rows = [i % len(self) for i in indices]
+        if self.window_frames is not None:
+            items = [self.item(i) for i in rows]
+            lengths = [it["length"] for it in items]
+            total = padded_length([self.window_frames], multiple_of)
+            out: dict[str, Any] = {}
+            for name in ("motion", "audio"):
+                if name in items[0]:
+                    out[name] = np.zeros((len(items), total, items[0][name].shape[1]), np.float32)
+                    for b, it in enumerate(items):
+                        out[name][b, : self.window_frames] = it[name]
+        else:
+            views, offsets = self._ensure_views()
+            lengths = [int(self.spans.length[i]) for i in rows]
+            total = padded_length(lengths, multiple_of)
+            out = {}
+            for name, view in views.items():
+                widths = [6 if p is None else p.shape[1] for p in view.parts]
+                dest = np.zeros((len(rows), total, sum(widths)), np.float32)
+                for b, i in enumerate(rows):
+                    base = offsets[self.spans.seq_ids[i]][0 if name == "motion" else 1]
+                    a = base + int(self.spans.frame_start[i])
+                    n = lengths[b]
+                    col = 0
+                    for part, width in zip(view.parts, widths, strict=True):
+                        if part is not None:
+                            dest[b, :n, col : col + width] = part[a : a + n]
+                        col += width
+                out[name] = dest
+        seq_ids = [self.spans.seq_ids[i] for i in rows]
+        out.update(
+            seq_id=seq_ids,
+            measure=self.spans.measure[rows].copy(),
+            frame_start=self.spans.frame_start[rows].copy(),
+            genre=np.stack([self.genre_onehot(s) for s in seq_ids]),
+            lengths=np.asarray(lengths, dtype=np.int64),
+            mask=lengths_mask(lengths, total),
+        )
+        return out
+
     def genre_onehot(self, seq_id: str) -> np.ndarray:
         out = np.zeros(len(self.genres), dtype=np.float32)
         genre = self.store.sequence(seq_id).get("genre")

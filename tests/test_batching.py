@@ -399,3 +399,25 @@ def test_lengths_mask() -> None:
     assert lengths_mask([2, 0, 3], 4).tolist() == [
         [True, True, False, False], [False] * 4, [True, True, True, False]
     ]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{}, {"window_frames": 128, "fit": "crop"}, {"window_frames": 96, "fit": "resample"}],
+    ids=["measures", "crop", "resample"],
+)
+def test_batch_reads_equal_pad_collate_of_items(store, options) -> None:
+    ds = MeasureDataset(store, split="train", **options)
+    for bucket in (True, False):
+        fast = _batches(training_loader(ds, 8, seed=6, bucket=bucket))
+        per_item = _batches(training_loader(ds, 8, seed=6, bucket=bucket, collate_fn=pad_collate))
+        _assert_same_batches(fast, per_item)
+    indices = [len(ds) - 1, 0, 3]
+    _assert_same_batches(
+        [ds.batch(indices, multiple_of=16)], [PadCollate(16)([ds[i] for i in indices])]
+    )
+    sliding = SecondsDataset(store, split="train", seconds=1.0, hop_seconds=0.75, audio=None)
+    _assert_same_batches(
+        _batches(training_loader(sliding, 8, seed=1)),
+        _batches(training_loader(sliding, 8, seed=1, collate_fn=pad_collate)),
+    )
