@@ -40,7 +40,10 @@ def featurize(
     store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
     representations: Annotated[
         str,
-        typer.Option(help="Motion representations, comma-separated: rotmat,euler,quat,rot6d."),
+        typer.Option(
+            help="Motion representations, comma-separated: rotmat,euler,quat,rot6d (Zhou: first "
+            "two columns of R), rot6d_rows (pytorch3d/EDGE: first two rows; not by default)."
+        ),
     ] = "rotmat,euler,quat,rot6d",
     euler_order: Annotated[
         str | None,

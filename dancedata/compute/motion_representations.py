@@ -11,12 +11,17 @@ from scipy.spatial.transform import Rotation
 
 from dancedata.compute.rotations import (
     ROT6D_LAYOUT,
+    ROT6D_ROWS_LAYOUT,
     quat_sign_continuous,
     rotmat_to_euler,
     rotmat_to_rot6d,
+    rotmat_to_rot6d_rows,
 )
 
 REPRESENTATIONS: tuple[str, ...] = ("rotmat", "euler", "quat", "rot6d")
+# Offered on request (featurize --representations ...,rot6d_rows), not computed by default.
+OPTIONAL_REPRESENTATIONS: tuple[str, ...] = ("rot6d_rows",)
+KNOWN_REPRESENTATIONS: tuple[str, ...] = REPRESENTATIONS + OPTIONAL_REPRESENTATIONS
 
 
 EulerOrder = str | list[str]
@@ -29,6 +34,7 @@ def representation_attrs(name: str, euler_order: EulerOrder) -> dict[str, object
         "euler": {"order": euler_order, "units": "rad"},
         "quat": {"quat_order": "wxyz", "sign": "continuous over time within each sequence"},
         "rot6d": {"rot6d_layout": ROT6D_LAYOUT},
+        "rot6d_rows": {"rot6d_layout": ROT6D_ROWS_LAYOUT},
     }[name]
 
 
@@ -38,6 +44,7 @@ def row_shape(name: str, n_joints: int) -> tuple[int, ...]:
         "euler": (n_joints, 3),
         "quat": (n_joints, 4),
         "rot6d": (n_joints, 6),
+        "rot6d_rows": (n_joints, 6),
     }[name]
 
 
@@ -70,7 +77,7 @@ def representations_from_axis_angle(
     rotation = Rotation.from_rotvec(values.reshape(-1, 3))
     per_joint_orders = not isinstance(euler_order, str)
     rotmat = None
-    if {"rotmat", "rot6d"} & set(names) or ("euler" in names and per_joint_orders):
+    if {"rotmat", "rot6d", "rot6d_rows"} & set(names) or ("euler" in names and per_joint_orders):
         rotmat = rotation.as_matrix().reshape(lead + (3, 3))
     out: dict[str, np.ndarray] = {}
     for name in names:
@@ -86,8 +93,10 @@ def representations_from_axis_angle(
             out[name] = rotation.as_quat(canonical=True)[:, [3, 0, 1, 2]].reshape(lead + (4,))
         elif name == "rot6d":
             out[name] = rotmat_to_rot6d(rotmat)
+        elif name == "rot6d_rows":
+            out[name] = rotmat_to_rot6d_rows(rotmat)
         else:
-            raise ValueError(f"unknown representation {name!r}; known: {REPRESENTATIONS}")
+            raise ValueError(f"unknown representation {name!r}; known: {KNOWN_REPRESENTATIONS}")
     return out
 
 

@@ -3,7 +3,11 @@
 All angles are radians. Quaternions are stored scalar-first (w, x, y, z); scipy's are
 scalar-last, so conversions go through :func:`scipy.spatial.transform.Rotation` with an explicit
 reorder. Euler orders follow scipy: upper case is intrinsic, lower case extrinsic. The 6D layout
-is Zhou et al. 2019: the first two *columns* of the rotation matrix, (r00, r10, r20, r01, r11, r21).
+is Zhou et al. 2019: the first two *columns* of the rotation matrix, (r00, r10, r20, r01, r11, r21)
+(``rot6d``); ``rot6d_rows`` is the first two *rows*, (r00, r01, r02, r10, r11, r12), the layout
+of pytorch3d's ``matrix_to_rotation_6d`` and of the code built on it (EDGE). For the same R
+the two differ (rows of R are the columns of Rᵀ): decoding one layout with the other's decoder
+gives Rᵀ = R⁻¹, the inverse rotation.
 """
 
 from __future__ import annotations
@@ -12,6 +16,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 ROT6D_LAYOUT = "zhou2019-columns: [R[:,0], R[:,1]] = (r00, r10, r20, r01, r11, r21)"
+ROT6D_ROWS_LAYOUT = (
+    "pytorch3d-rows: [R[0,:], R[1,:]] = (r00, r01, r02, r10, r11, r12) "
+    "(pytorch3d matrix_to_rotation_6d, EDGE)"
+)
 QUAT_ORDER = "wxyz"
 
 
@@ -97,6 +105,18 @@ def rot6d_to_rotmat(rot6d: np.ndarray) -> np.ndarray:
     b2 = a2 / np.linalg.norm(a2, axis=-1, keepdims=True)
     b3 = np.cross(b1, b2)
     return np.stack([b1, b2, b3], axis=-1)
+
+
+def rotmat_to_rot6d_rows(rotmat: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) → (..., 6): the first two rows of R, row after row (pytorch3d, EDGE)."""
+    rotmat = np.asarray(rotmat)
+    return rotmat[..., :2, :].reshape(rotmat.shape[:-2] + (6,))
+
+
+def rot6d_rows_to_rotmat(rot6d: np.ndarray) -> np.ndarray:
+    """(..., 6) → (..., 3, 3) by Gram–Schmidt on the two stored rows (pytorch3d's
+    ``rotation_6d_to_matrix``: b1, b2 orthonormalised, b3 = b1 × b2, stacked as rows)."""
+    return np.swapaxes(rot6d_to_rotmat(rot6d), -1, -2)
 
 
 def quat_sign_continuous(quat: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ import numpy as np
 
 from dancedata._version import __version__
 from dancedata.compute.audio_features import AudioFeatureConfig
-from dancedata.compute.motion_representations import REPRESENTATIONS
+from dancedata.compute.motion_representations import KNOWN_REPRESENTATIONS, REPRESENTATIONS
 from dancedata.errors import InputError, StoreError
 from dancedata.exec.executors import make_executor
 from dancedata.exec.units import Job, UnitReport, run_units
@@ -147,9 +147,11 @@ def _validate(options: FeaturizeOptions) -> None:
         problems = family_problems(options.audio_family_names(), options.audio_settings)
         if problems:
             raise InputError("; ".join(problems))
-    unknown = sorted(set(options.representations) - set(REPRESENTATIONS))
+    unknown = sorted(set(options.representations) - set(KNOWN_REPRESENTATIONS))
     if unknown:
-        raise InputError(f"unknown representation(s) {unknown}; choose from {REPRESENTATIONS}")
+        raise InputError(
+            f"unknown representation(s) {unknown}; choose from {KNOWN_REPRESENTATIONS}"
+        )
     try:
         from scipy.spatial.transform import Rotation
 

@@ -90,7 +90,8 @@ class MotionFamily:
 
 
 class RotationsFamily(MotionFamily):
-    """rotmat, euler, quat (wxyz, sign-continuous within each sequence) and rot6d."""
+    """rotmat, euler, quat (wxyz, sign-continuous within each sequence), rot6d (Zhou's
+    columns) and, on request, rot6d_rows (pytorch3d's and EDGE's rows)."""
 
     name = "rotations"
     requires = ("axis_angle",)
