@@ -37,8 +37,28 @@ Dask = Annotated[
         "start N local worker processes. Needs the 'scale' extra.",
     ),
 ]
+
+
+def store_version(value: str | None) -> str | None:
+    """``--version`` of a reading command: ``v3``, ``V3`` or ``3`` all name version v3."""
+    if value is None:
+        return None
+    text = value.strip()
+    digits = text[1:] if text[:1] in ("v", "V") else text
+    if not digits.isdigit() or int(digits) < 1:
+        raise typer.BadParameter(f"{value!r} is not a store version; give it as v3 or 3")
+    return f"v{int(digits)}"
+
+
+# Long form only: -V would read as the program's version (`dancedata --version`) elsewhere.
 VersionOpt = Annotated[
-    str | None, typer.Option("--version", "-V", help="Version to read (default: latest).")
+    str | None,
+    typer.Option(
+        "--version",
+        metavar="VERSION",
+        callback=store_version,
+        help="Store version to read: v3 or 3 (default: the latest).",
+    ),
 ]
 
 

@@ -7,7 +7,7 @@ import os
 from typing import Annotated
 
 import typer
-from dancedata.cli.common import Json, Quiet, VersionOpt, setup, split_csv
+from dancedata.cli.common import Json, Quiet, VersionOpt, setup, split_csv, store_version
 from dancedata.cli.main import app
 
 
@@ -131,7 +131,10 @@ def evaluate_command(
     ] = False,
     version: VersionOpt = None,
     generated_version: Annotated[
-        str | None, typer.Option(help="Version of a generated store (default: latest).")
+        str | None,
+        typer.Option(
+            callback=store_version, help="Version of a generated store: v3 or 3 (default: latest)."
+        ),
     ] = None,
     quiet: Quiet = False,
     as_json: Json = False,

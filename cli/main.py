@@ -2,16 +2,35 @@
 
 Every command imports the library code it needs inside its body, so ``dancedata --help`` and
 ``--version`` never load zarr, librosa, numba or torch.
+
+How a run ends (``main``):
+
+- success: exit 0 (``validate`` exits 1 on an invalid store, ``evaluate --strict`` likewise);
+- a library error (:class:`dancedata.errors.DancedataError`): one line ``error: ...`` on stderr,
+  exit 1;
+- a usage error (unknown option, bad value): click's message on stderr, exit 2;
+- Ctrl-C (SIGINT): the line ``interrupted; run again to resume`` on stderr, exit 130. By then the
+  writer has removed its temporary version (or kept it for resuming, for resumable builds) and
+  released the store lock, as on any other error.
+
+When the command line holds ``--json``, each of these failures also prints one JSON object on
+**stdout**, where the success summary would have gone, so that a caller parsing stdout always
+gets JSON: ``{"error": "...", "file": "path or null", "exit_code": 1, "kind": "InputError"}``
+(``kind`` is the error class, ``usage`` or ``interrupted``).
 """
 
 from __future__ import annotations
 
+import json
 import sys
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from dancedata._version import __version__
+
+INTERRUPTED = "interrupted; run again to resume"
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 
 app = typer.Typer(
     name="dancedata",
@@ -38,7 +57,11 @@ def _root(
     version: Annotated[
         bool,
         typer.Option(
-            "--version", callback=_version_callback, is_eager=True, help="Print the version."
+            "--version",
+            callback=_version_callback,
+            is_eager=True,
+            help="Print the program's version. (After a command, --version VERSION names the "
+            "store version to read: v3 or 3.)",
         ),
     ] = False,
 ) -> None:
@@ -49,13 +72,81 @@ def _register() -> None:
     from dancedata.cli import commands  # noqa: F401  (registers commands on `app`)
 
 
+def build_command() -> Any:
+    """The click command tree of ``app`` with plain help (see :func:`_plain_help`)."""
+    _register()
+    command = typer.main.get_command(app)
+    _plain_help(command, "")
+    return command
+
+
+def _plain_help(command: Any, path: str) -> None:
+    """Help that reads the same in a terminal and in a log: click's plain layout (options are
+    never truncated, flags show no ``<bool>`` type), each command's first sentence in the command
+    lists, and the worked example of cli/examples.py at the end of every command's help."""
+    from dancedata.cli.examples import EXAMPLES
+
+    command.rich_markup_mode = None
+    for param in command.params:
+        # A flag declared as --no-X (e.g. --no-music) gets no --no-no-X twin.
+        if getattr(param, "is_bool_flag", False) and any(
+            opt.startswith("--no-no-") for opt in param.secondary_opts
+        ):
+            param.secondary_opts = []
+    if command.help and not command.short_help:
+        command.short_help = _first_sentence(command.help)
+    example = EXAMPLES.get(path)
+    has_own = any(line.strip().startswith("Example") for line in (command.help or "").splitlines())
+    if example and not has_own and not command.epilog:
+        command.epilog = f"\b\nExample:\n  {example}"
+    for name, sub in getattr(command, "commands", {}).items():
+        _plain_help(sub, f"{path} {name}".strip())
+
+
+def _first_sentence(text: str) -> str:
+    flat = " ".join(text.split("\n\n")[0].split())
+    end = flat.find(". ")
+    return flat if end < 0 else flat[: end + 1]
+
+
+def _wants_json(argv: list[str]) -> bool:
+    return "--json" in argv[: argv.index("--")] if "--" in argv else "--json" in argv
+
+
+def _fail(
+    message: str, exit_code: int, *, as_json: bool, kind: str, file: str | None = None
+) -> None:
+    """Print the failure (stderr line, plus the JSON object on stdout with --json) and exit."""
+    if as_json:
+        record = {"error": message, "file": file, "exit_code": exit_code, "kind": kind}
+        print(json.dumps(record), flush=True)
+    sys.exit(exit_code)
+
+
 def main() -> None:
-    """Console entry point: library errors become one line on stderr and exit code 1."""
+    """Console entry point: see the module docstring for exit codes and error output."""
     from dancedata.errors import DancedataError
 
-    _register()
+    argv = sys.argv[1:]
+    as_json = _wants_json(argv)
+    command = build_command()
     try:
-        app()
+        code = command.main(args=argv, prog_name="dancedata", standalone_mode=False)
     except DancedataError as exc:
         typer.echo(f"error: {exc}", err=True)
-        sys.exit(1)
+        _fail(exc.problem, 1, as_json=as_json, kind=type(exc).__name__, file=exc.path)
+    except typer.Abort:
+        # typer turns Ctrl-C into Exit(130) (below); Abort is EOF at a prompt.
+        typer.echo("Aborted!", err=True)
+        _fail("aborted", 1, as_json=as_json, kind="aborted")
+    except typer.TyperException as exc:  # click's usage errors (typer vendors click)
+        exc.show()  # type: ignore[attr-defined]
+        message = exc.format_message()  # type: ignore[attr-defined]
+        _fail(message, exc.exit_code, as_json=as_json, kind="usage")  # type: ignore[attr-defined]
+    else:
+        # standalone_mode=False: typer returns the code of an Exit (130 for Ctrl-C), or the
+        # command's return value (None).
+        if code == EXIT_INTERRUPTED:
+            typer.echo(INTERRUPTED, err=True)
+            _fail(INTERRUPTED, EXIT_INTERRUPTED, as_json=as_json, kind="interrupted")
+        sys.exit(code if isinstance(code, int) else 0)

@@ -31,7 +31,16 @@ def _call(fn: Callable[[Any], Any], item: Any) -> Any:
     return fn(item)
 
 
+def _quit_quietly(signum: int, frame: object) -> None:
+    os._exit(128 + signum)
+
+
 def _init_worker(warmups: Sequence[Callable[[], None]]) -> None:
+    # Ctrl-C reaches every process of the terminal's group: a worker leaves at once without a
+    # traceback (its unit is not marked done, so a resumed run redoes it); the parent reports.
+    import signal
+
+    signal.signal(signal.SIGINT, _quit_quietly)
     pin_threads(1)
     for warmup in warmups:
         warmup()

@@ -67,8 +67,17 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
         info["frames"] = frames
         info["hours"] = round(sum(s["n_frames"] / s["fps"] for s in sequences) / 3600.0, 4)
         info["sources"] = dict(Counter(s["source"] for s in sequences))
-        info["genres"] = dict(sorted(Counter(s["genre"] for s in sequences).items()))
+        genres = Counter(s["genre"] for s in sequences if s.get("genre") is not None)
+        info["genres"] = dict(sorted(genres.items()))
+        info["genre_missing"] = len(sequences) - sum(genres.values())
         info["bpms"] = sorted({s["bpm"] for s in sequences if s.get("bpm") is not None})
+        # bpm_estimated (BVH / video ingest): tempo estimated from the audio, not given.
+        info["bpms_estimated"] = sorted(
+            {s["bpm"] for s in sequences if s.get("bpm") is not None and s.get("bpm_estimated")}
+        )
+        info["bpms_given"] = sorted(
+            {s["bpm"] for s in sequences if s.get("bpm") is not None and not s.get("bpm_estimated")}
+        )
         info["music_missing"] = sum(bool(s.get("music_missing")) for s in sequences)
         info["audio_truncated_sequences"] = sum(
             1 for s in sequences if (s.get("audio_truncated_frames") or 0) > 0
@@ -117,15 +126,16 @@ def format_info(info: dict[str, Any]) -> str:
     lines = [
         f"store     {info['store']}",
         f"version   {info['version']} (latest {info['latest']}; {len(info['versions'])} "
-        f"committed) from `{info['command']}` at {info['created_at']}, parent {info['parent']}",
+        f"committed) from `{info['command']}` at {info['created_at']}, "
+        + (f"parent {info['parent']}" if info["parent"] else "the first version"),
     ]
     if "sequences" in info:
         lines.append(
             f"sequences {info['sequences']} ({info['frames']} frames, {info['hours']:.3f} h); "
             f"sources {info['sources']}"
         )
-        lines.append(f"genres    {info['genres']}")
-        lines.append(f"tempi     {info['bpms']} BPM")
+        lines.append(_genres_line(info))
+        lines.append(_tempi_line(info))
         if info.get("music_missing"):
             lines.append(f"music     missing for {info['music_missing']} sequences")
         for kind, n in info.get("annotations_missing", {}).items():
@@ -173,3 +183,27 @@ def format_info(info: dict[str, Any]) -> str:
             f"-> {entry.get('version')}"
         )
     return "\n".join(lines)
+
+
+def _genres_line(info: dict[str, Any]) -> str:
+    missing = info.get("genre_missing", 0)
+    if not info["genres"]:
+        return "genres    none recorded (the source has no genre labels; --genre sets one)"
+    tail = f"; {missing} sequences without one" if missing else ""
+    return f"genres    {info['genres']}{tail}"
+
+
+def _tempi_line(info: dict[str, Any]) -> str:
+    """Given tempi (the dataset's, or --bpm) apart from tempi estimated from the audio."""
+    given = info.get("bpms_given", info["bpms"])
+    estimated = info.get("bpms_estimated", [])
+    parts = []
+    if given:
+        parts.append(f"{_bpm_list(given)} BPM given (dataset or --bpm)")
+    if estimated:
+        parts.append(f"{_bpm_list(estimated)} BPM estimated from the audio (librosa beat_track)")
+    return "tempi     " + ("; ".join(parts) if parts else "none (no music or no tempo)")
+
+
+def _bpm_list(bpms: list[float]) -> str:
+    return ", ".join(f"{b:g}" if float(b).is_integer() else f"{b:.2f}" for b in bpms)
