@@ -34,11 +34,15 @@ class CsvSkeleton(StrEnum):
 
 @ingest_app.command("video")
 def ingest_video_cmd(
-    videos: Annotated[
-        list[Path],
-        typer.Argument(help="Video files; each becomes one sequence named after its file stem."),
-    ],
     store: Annotated[Path, typer.Option("--store", "-s", help="Store directory (created if new).")],
+    videos: Annotated[
+        list[Path] | None,
+        typer.Argument(
+            help="Video files; each becomes one sequence named after its file stem. None: the "
+            "pose files alone, with --fps (sequences named after the OpenPose file prefix, "
+            "frames numbered from the file names)."
+        ),
+    ] = None,
     poses: Annotated[
         Path | None,
         typer.Option(
@@ -92,7 +96,8 @@ def ingest_video_cmd(
     fps: Annotated[
         float | None,
         typer.Option(
-            help="Stored frame rate; poses are resampled by timestamp. Default: the video's."
+            help="Stored frame rate; poses are resampled by timestamp. Default: the video's. "
+            "Without a video: the rate the poses were taken at (required)."
         ),
     ] = None,
     frame_times: Annotated[
@@ -131,7 +136,8 @@ def ingest_video_cmd(
     poses to each video's clock (pose frame i at i / video fps) and resample them by timestamp
     into a new store version: motion/pose2d (x, y px, confidence; NaN where missing) with
     motion/pose2d_mask (0 missing, 1 detected, 2 gap-filled), motion/positions (metres).
-    Pose and video frame counts must agree unless --allow-drift."""
+    Pose and video frame counts must agree unless --allow-drift. Without VIDEO, the pose files
+    are the clock: give --fps; pose frame i (from the file name) is at i / fps."""
     setup(quiet)
     from dancedata.ingest.video import VideoIngestOptions, ingest_video
     from dancedata.ingest.video_poses import PoseSettings
@@ -161,7 +167,7 @@ def ingest_video_cmd(
     from dancedata.store.first_write import remove_store_if_left_empty
 
     with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
-        result = ingest_video(store, videos, options)
+        result = ingest_video(store, videos or [], options)
     report(result, "ingest video", as_json, store=str(store))
     if not as_json:
         for line in _notes(result.counts.get("videos", {})):

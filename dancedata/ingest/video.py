@@ -20,7 +20,7 @@ exactly as it was. Stored arrays (docs/STORE.md, "Video-derived poses"):
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +29,12 @@ from dancedata.errors import InputError
 from dancedata.ingest.locked import already_ingested, latest_version
 from dancedata.ingest.result import CommandResult
 from dancedata.ingest.run_state import IngestRun
-from dancedata.ingest.video_inputs import VideoInputs, check_unique_stems, resolve_inputs
+from dancedata.ingest.video_inputs import (
+    VideoInputs,
+    check_unique_stems,
+    pose_only_inputs,
+    resolve_inputs,
+)
 from dancedata.ingest.video_music import MusicTrack, bpm_method, music_from_file, music_from_video
 from dancedata.ingest.video_poses import MASK_CODES, PoseSettings, VideoPoses, process_video
 from dancedata.progress import progress
@@ -133,6 +138,8 @@ class _Run(IngestRun):
 
 def _inventory(run: _Run, videos: list[Path]) -> list[VideoInputs]:
     opts = run.options
+    if not videos:  # pose files only (--fps): the sequences come from them (video_inputs)
+        return pose_only_inputs(opts.poses, opts.joints_csv, opts.music)
     found: list[VideoInputs] = []
     for video in videos:
         try:
@@ -150,7 +157,7 @@ def _sequence_key(run: _Run, inputs: VideoInputs) -> str:
     """Checksum line binding a sequence id to its inputs (the fingerprint's input list)."""
     parts = [
         inputs.seq_id,
-        f"video={run.sha(inputs.video)}",
+        f"video={run.sha(inputs.video) if inputs.has_video else None}",
         f"poses={run.pose_digest(inputs) if inputs.poses else None}",
         f"csv={run.sha(inputs.joints_csv) if inputs.joints_csv else None}",
         f"music={run.sha(inputs.music) if inputs.music else None}",
@@ -286,7 +293,13 @@ def _sequence_row(
             None if poses.inputs.joints_csv is None else str(poses.inputs.joints_csv)
         ),
         "path": str(poses.inputs.video),
-        "sha256": run.sha(poses.inputs.video),
+        "sha256": (
+            run.sha(poses.inputs.video)
+            if poses.inputs.has_video
+            else run.pose_digest(poses.inputs)
+            if poses.inputs.poses
+            else run.sha(poses.inputs.joints_csv)
+        ),
     }
 
 
@@ -393,8 +406,8 @@ def ingest_video(
     """Ingest ``videos`` with their poses (``options``) into a new version of ``store``."""
     options.check()
     paths = [Path(v) for v in videos]
-    if not paths:
-        raise InputError("no video given")
+    if not paths:  # pose files only: no audio track, music only from --music
+        options = replace(options, no_music=options.no_music or options.music is None)
     check_unique_stems(paths)
     run = _Run(on_error=options.on_error, options=options)
     found = _inventory(run, paths)

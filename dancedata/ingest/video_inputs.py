@@ -16,6 +16,22 @@ OpenPose JSON (``--poses DIR``):
 Music (``--music PATH``): ``PATH`` itself when it is a file (shared by every video), or
 ``PATH/<stem>.{wav,flac,ogg,mp3}`` when it is a folder. Without ``--music`` the video's own
 audio track is used when it has one (see :mod:`dancedata.ingest.video_music`).
+
+No video (``ingest video --poses DIR --fps F`` with no VIDEO argument, for users who have only
+the pose files; :func:`pose_only_inputs`): the sequences are found in the pose inputs instead.
+
+* ``--poses DIR`` holding ``*_keypoints.json``: one sequence per file-name prefix (OpenPose
+  names its files ``<video stem>_<frame>_keypoints.json``, so the prefix is the video's stem;
+  files with no prefix take the folder's name). A folder without such files: one sequence per
+  subfolder that has them, named after the subfolder.
+* ``--joints-csv`` alone: the file (named by its stem), or every ``*.csv`` in the folder.
+  With ``--poses`` too, each pose sequence takes its CSV by the rule above, as if it were a
+  video of that name.
+* Music only from ``--music`` (there is no audio track).
+
+The pose files are then the clock: pose frame i (the number in the JSON file name, or the CSV
+row / frame column) sits at ``i / F`` seconds, and the duration is the frame count over F
+(:mod:`dancedata.ingest.video_poses`).
 """
 
 from __future__ import annotations
@@ -33,12 +49,14 @@ class VideoInputs:
     """The files one video's sequence is built from.
 
     Attributes:
-        seq_id: the video's file stem.
-        video: the video file (its clock is the time base).
+        seq_id: the video's file stem (without a video: the pose sequence's name).
+        video: the video file (its clock is the time base); without a video, the pose folder
+            or CSV the sequence comes from (``has_video`` False).
         poses: folder of OpenPose JSON, or None when only 3-d joints are given.
         poses_prefix: file-name prefix to keep inside ``poses`` (rule 2), else None.
         joints_csv: 3-d joints CSV, or None.
         music: music file given with ``--music``, or None (then the video's audio track).
+        has_video: False when there is no video: the pose files are the clock (``--fps``).
     """
 
     seq_id: str
@@ -47,6 +65,7 @@ class VideoInputs:
     poses_prefix: str | None
     joints_csv: Path | None
     music: Path | None
+    has_video: bool = True
 
     def pose_files(self) -> list[Path]:
         """The OpenPose JSON files of this video, in frame order (empty without poses)."""
@@ -139,3 +158,76 @@ def check_unique_stems(videos: list[Path]) -> None:
                 video,
             )
         seen[video.stem] = video
+
+
+def _prefix_sequences(folder: Path) -> dict[str, str | None]:
+    """seq_id → file prefix of every OpenPose sequence directly in ``folder``."""
+    found: dict[str, str | None] = {}
+    for path in sorted(folder.iterdir()):
+        prefix = keypoint_file_prefix(path.name) if path.is_file() else None
+        if prefix is None and not (path.is_file() and path.name.endswith("_keypoints.json")):
+            continue
+        found.setdefault(prefix or folder.name, prefix or "")
+    return found
+
+
+def _pose_sequences(poses: Path) -> list[tuple[str, Path, str | None]]:
+    """(seq_id, folder, prefix) of each OpenPose sequence under ``poses`` (module docstring)."""
+    if not poses.is_dir():
+        raise InputError("--poses is not a folder", poses)
+    direct = _prefix_sequences(poses)
+    if direct:
+        single = len(direct) == 1
+        return [(seq, poses, None if single else prefix) for seq, prefix in direct.items()]
+    found = []
+    for sub in sorted(p for p in poses.iterdir() if p.is_dir()):
+        if _prefix_sequences(sub):
+            found.append((sub.name, sub, None))
+    if not found:
+        raise InputError(
+            "no *_keypoints.json files in the folder or its subfolders (no video given, so the "
+            "sequences come from the pose files)",
+            poses,
+        )
+    return found
+
+
+def pose_only_inputs(
+    poses: Path | None, joints_csv: Path | None, music: Path | None
+) -> list[VideoInputs]:
+    """The sequences of pose files given without any video (module docstring: the rules)."""
+    if poses is not None:
+        found = _pose_sequences(poses)
+        sources = [(seq, folder, prefix, folder) for seq, folder, prefix in found]
+    elif joints_csv is not None and joints_csv.is_dir():
+        csvs = sorted(p for p in joints_csv.iterdir() if p.suffix.lower() == ".csv")
+        if not csvs:
+            raise InputError("no *.csv files in the folder", joints_csv)
+        sources = [(p.stem, None, None, p) for p in csvs]
+    elif joints_csv is not None:
+        if not joints_csv.is_file():
+            raise InputError("--joints-csv: no such file or folder", joints_csv)
+        sources = [(joints_csv.stem, None, None, joints_csv)]
+    else:
+        raise InputError("give the poses: --poses DIR (OpenPose JSON) and/or --joints-csv")
+    single = len(sources) == 1
+    inputs = []
+    for seq_id, folder, prefix, source in sources:
+        if folder is not None:
+            list_keypoint_files(folder, prefix)  # fails early on an empty or mixed folder
+        named = Path(seq_id)  # stands for a video of this name in the CSV and music rules
+        csv = source if folder is None else None
+        if folder is not None and joints_csv is not None:
+            csv = find_joints_csv(joints_csv, named, single)
+        inputs.append(
+            VideoInputs(
+                seq_id=seq_id,
+                video=source,
+                poses=folder,
+                poses_prefix=prefix,
+                joints_csv=csv,
+                music=None if music is None else find_music_for(music, named),
+                has_video=False,
+            )
+        )
+    return inputs

@@ -7,6 +7,10 @@ i (variable-frame-rate video; costs a full decode); stored frame k sits at ``k /
 Values are linearly interpolated by timestamp, confidences taken from the nearest frame
 (:mod:`dancedata.compute.timebase`).
 
+Without a video (``inputs.has_video`` False) the pose files are the clock
+(:func:`pose_clock`): ``fps`` must be given, pose frame i sits at ``i / fps`` and the frame count
+is the pose files' own (OpenPose: highest file number + 1), so there is no drift to check.
+
 Frame counts: the pose frames (OpenPose: highest file number + 1; CSV: rows or highest frame
 number + 1) must equal the video's, else the video is refused unless ``allow_drift``. With drift
 allowed, only the frames both have are kept (``min(pose, video)``) and the drift is reported.
@@ -193,6 +197,33 @@ def _read_csv(path: Path, settings: PoseSettings):
         raise
 
 
+def pose_clock(inputs: VideoInputs, settings: PoseSettings, n_frames: int) -> VideoClock:
+    """The clock of pose files given without a video: ``n_frames`` frames (the highest
+    OpenPose file number + 1, else the CSV's frames) at ``settings.fps`` (required), frame i at
+    ``i / fps``, duration ``n_frames / fps``. The frame size is unknown (None)."""
+    source = inputs.poses or inputs.joints_csv
+    if settings.fps is None:
+        raise InputError(
+            "no video, so the pose files carry no frame rate: give --fps (the video's frame "
+            "rate the poses were estimated at)",
+            source,
+        )
+    if settings.frame_times == "decoded":
+        raise InputError("--frame-times decoded needs the video file", source)
+    return VideoClock(
+        path=inputs.video,
+        fps=float(settings.fps),
+        n_frames=n_frames,
+        duration_s=n_frames / float(settings.fps),
+        width=None,  # type: ignore[arg-type]  # no image: size unknown
+        height=None,  # type: ignore[arg-type]
+        frame_count_source="OpenPose file numbers" if inputs.poses else "joints CSV frames",
+        fps_source="--fps (no video)",
+        property_frame_count=float("nan"),
+        decoded_frame_count=None,
+    )
+
+
 def process_video(
     inputs: VideoInputs, settings: PoseSettings, skip_bad_files: bool = False
 ) -> VideoPoses:
@@ -210,19 +241,26 @@ def process_video(
     if settings.frame_times not in ("nominal", "decoded"):
         raise InputError(f"unknown frame times {settings.frame_times!r}; use nominal or decoded")
     decoded = settings.frame_times == "decoded"
-    clock = read_video_clock(inputs.video, verify="always" if decoded else "auto")
-    fps = settings.fps or clock.fps
     bad: list[tuple[str, str]] = []
-    report: dict[str, Any] = {"video": clock.to_dict(), "fps": fps, "drift": {}}
-    n_used = clock.n_frames
-
-    tracked = None
+    frames = csv = None
     if inputs.poses is not None:
         frames = read_openpose_folder(
             inputs.poses,
             inputs.poses_prefix,
             on_bad_file=(lambda p, e: bad.append((str(p), e))) if skip_bad_files else None,
         )
+    if inputs.joints_csv is not None:
+        csv = _read_csv(inputs.joints_csv, settings)
+    if inputs.has_video:
+        clock = read_video_clock(inputs.video, verify="always" if decoded else "auto")
+    else:
+        clock = pose_clock(inputs, settings, frames.n_frames if frames else csv.n_frames)
+    fps = settings.fps or clock.fps
+    report: dict[str, Any] = {"video": clock.to_dict(), "fps": fps, "drift": {}}
+    n_used = clock.n_frames
+
+    tracked = None
+    if frames is not None:
         drift = check_frame_count(
             frames.n_frames,
             clock.n_frames,
@@ -240,9 +278,7 @@ def process_video(
         report["tracking"] = tracked.report()
         n_used = min(n_used, frames.n_frames)
 
-    csv = None
-    if inputs.joints_csv is not None:
-        csv = _read_csv(inputs.joints_csv, settings)
+    if csv is not None:
         drift = check_frame_count(
             csv.n_frames,
             clock.n_frames,
