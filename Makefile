@@ -3,7 +3,11 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
+# Stamps: .installed = dancedata and its required dependencies only (what `make pipeline`
+# needs, with the viz stamp); .installed-dev = the 'dev' extra (pytest, ruff, hypothesis, and the
+# scale/S3 stack the tests use), for test, lint, fuzz and bench.
 STAMP := $(VENV)/.installed
+DEV_STAMP := $(VENV)/.installed-dev
 # The optional OpenUnmix stack (the 'stems' extra), pinned to builds that load together; `make
 # test` installs it once (its own stamp) so tests/test_stems_openunmix.py runs instead of skipping.
 STEMS_STAMP := $(VENV)/.installed-stems
@@ -23,17 +27,23 @@ DEMO_RESULTS := data/stores/aist-demo-experiment
 # The sequence drawn for docs/img/plot.png (default: the store's first, looked up at run time).
 DEMO_PLOT_SEQ ?= $$($(PY) -c "import dancedata; print(dancedata.open_store('$(DEMO_STORE)').seq_ids()[0])")
 
-.PHONY: install install-stems install-viz browser pipeline test lint bench fuzz clean
+.PHONY: install install-dev install-stems install-viz browser pipeline test lint bench fuzz clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev]'
+	$(PY) -m pip install --quiet -e .
 	touch $(STAMP)
 
 install: $(STAMP)
 
-$(STEMS_STAMP): $(STAMP)
+$(DEV_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e '.[dev]'
+	touch $(DEV_STAMP)
+
+install-dev: $(DEV_STAMP)
+
+$(STEMS_STAMP): $(DEV_STAMP)
 	$(PY) -m pip install --quiet -e '.[dev,stems]' $(STEMS_PINS)
 	touch $(STEMS_STAMP)
 
@@ -68,19 +78,19 @@ pipeline: $(STAMP) $(VIZ_STAMP) browser
 	$(BIN)/dancedata experiment table demo --results $(DEMO_RESULTS)
 
 # Tests use a temporary feature cache (tests/conftest.py sets DANCEDATA_CACHE), never ~/.cache.
-test: $(STEMS_STAMP) $(VIZ_STAMP) browser
+test: $(DEV_STAMP) $(STEMS_STAMP) $(VIZ_STAMP) browser
 	$(PY) -m pytest -q
 
 # bench_batching.py needs torch: the stems stamp installs the pinned torch build.
-bench: $(STAMP) $(VIZ_STAMP) $(STEMS_STAMP)
+bench: $(DEV_STAMP) $(VIZ_STAMP) $(STEMS_STAMP)
 	$(PY) bench/run.py $(BENCH)
 
 # Hypothesis fuzzing of the readers (fuzz/run.py): FUZZ_MINUTES of examples, then statistics.
 FUZZ_MINUTES ?= 10
-fuzz: $(STAMP)
+fuzz: $(DEV_STAMP)
 	$(PY) fuzz/run.py --minutes $(FUZZ_MINUTES) $(FUZZ_ARGS)
 
-lint: $(STAMP)
+lint: $(DEV_STAMP)
 	$(BIN)/ruff check .
 
 clean:
