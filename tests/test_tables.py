@@ -109,3 +109,14 @@ def test_any_other_id_lays_out_the_results_and_unknown_seed_ids_fail() -> None:
         render_table("4.14", rows, [])
     with pytest.raises(InputError, match="unknown table format"):
         render_table("4.3", rows, [], "html")
+
+
+def test_rows_without_n_from_evaluate_fill_their_row_at_any_n() -> None:
+    """`dancedata evaluate --row-key even+transformer_motion` records no N: its values serve
+    that row in the N = 9 and the N = 3 tables, unless a result with its own N exists."""
+    evaluated = {"row_key": "even+transformer_motion", "n_keyframes": None, "metric": "mse",
+                 "value": 0.5}  # fmt: skip
+    own = result("even+transformer_motion", 3, "mse", 0.75)
+    assert build("4.4", [evaluated], []).cells[2][0].value == 0.5
+    assert build("4.5", [evaluated, own], []).cells[2][0].value == 0.75
+    assert build("4.5", [evaluated, own], []).cells[0][0].value is None

@@ -62,11 +62,14 @@ class Rendered:
     notes: list[str] = field(default_factory=list)
 
 
-def _lookup(results: list[dict[str, Any]]) -> dict[tuple[str, int, str], dict[str, Any]]:
-    """(row_key, N, metric) → result row; the first of duplicates wins."""
-    out: dict[tuple[str, int, str], dict[str, Any]] = {}
+def _lookup(results: list[dict[str, Any]]) -> dict[tuple[str, int | None, str], dict[str, Any]]:
+    """(row_key, N, metric) → result row; the first of duplicates wins. Rows without N (a
+    ``dancedata evaluate --row-key`` record) are keyed with N = None and serve that row at
+    any N that has no result of its own."""
+    out: dict[tuple[str, int | None, str], dict[str, Any]] = {}
     for r in results:
-        out.setdefault((r["row_key"], int(r["n_keyframes"]), r["metric"]), r)
+        n = r.get("n_keyframes")
+        out.setdefault((r["row_key"], None if n is None else int(n), r["metric"]), r)
     return out
 
 
@@ -139,7 +142,8 @@ def build(table_id: str, results: list[dict[str, Any]], skipped: list[dict[str, 
                                  "spec §4.6 finds underspecified)"))  # fmt: skip
                 line_fmt.append(fmt)
                 continue
-            hit = next((found[k] for k in sub if k in found), None)
+            keys = [*sub, *((k[0], None, k[2]) for k in sub)]
+            hit = next((found[k] for k in keys if k in found), None)
             if hit is not None and hit["value"] is not None:
                 line.append(Cell(float(hit["value"]), seed))
             else:
@@ -243,6 +247,11 @@ def load_results(folders: list[str | Path]) -> tuple[list[dict[str, Any]], list[
     skipped: list[dict[str, Any]] = []
     for folder in folders:
         found, record = read_results(Path(folder))
-        rows.extend(r for r in found if r["value"] is not None)
-        skipped.extend(record.get("skipped", []))
+        rows.extend(r for r in found if r.get("row_key") and r.get("value") is not None)
+        listed = record.get("skipped", [])
+        skipped.extend(
+            s
+            for s in (listed if isinstance(listed, list) else [])
+            if isinstance(s, dict) and {"row_key", "reason"} <= set(s)
+        )
     return rows, skipped
