@@ -10,8 +10,9 @@ short on the shared machine), over the crossmodal train split's measure windows
 * baseline — the plain per-item loop a training script writes when ``batch_size=8`` fails:
   ``DataLoader(MeasureDataset(...), batch_size=1, shuffle=True)`` in one process, 64 items
   padded into a batch by hand (``torch.nn.utils.rnn.pad_sequence``);
-* dancedata — ``training_loader(ds, 64, bucket=True, num_workers=2)`` (length buckets, padding
-  collate with mask and lengths, persistent workers), and the same with ``num_workers=0``;
+* dancedata — ``training_loader(ds, 64, bucket=True, num_workers=2)`` (length buckets, whole
+  padded batches with mask and lengths read by ``dataset.batch``, persistent workers), the same
+  with ``num_workers=0``, and with items + ``pad_collate`` instead of batch reads;
 * fixed-length windows (``window_frames=128, fit="resample"``: SLERP on rotations), 2 and 0
   workers, and 4 s sliding windows with a 1 s hop (``SecondsDataset``), 2 workers;
 * the transport floor: a DataLoader whose workers only return ready-made zero tensors of a
@@ -103,10 +104,12 @@ def baseline(store: Path, epochs: int):
     return run_epochs(batches, epochs), len(ds)
 
 
-def dancedata_loader(ds, epochs: int, workers: int, bucket: bool = True):
+def dancedata_loader(ds, epochs: int, workers: int, bucket: bool = True, collate=None):
     from dancedata.torch_batching import training_loader
 
-    loader = training_loader(ds, BATCH, seed=0, bucket=bucket, num_workers=workers)
+    loader = training_loader(
+        ds, BATCH, seed=0, bucket=bucket, num_workers=workers, collate_fn=collate
+    )
 
     def batches():
         for batch in loader:
@@ -191,9 +194,13 @@ def main(argv: list[str]) -> int:
     )
     for workers in (2, 0):
         result = dancedata_loader(ds, args.epochs, workers)
-        rows.append((f"dancedata: bucketed, pad_collate, {workers} workers", *result))
+        rows.append((f"dancedata: bucketed, batch reads, {workers} workers", *result))
+    from dancedata.torch_batching import pad_collate
+
+    result = dancedata_loader(ds, args.epochs, 2, collate=pad_collate)
+    rows.append(("dancedata: bucketed, items + pad_collate (no batch reads), 2 workers", *result))
     result = dancedata_loader(ds, args.epochs, 2, bucket=False)
-    rows.append(("dancedata: seeded shuffle, pad_collate, 2 workers", *result))
+    rows.append(("dancedata: seeded shuffle, 2 workers", *result))
     fixed = MeasureDataset(store, split="train", window_frames=128, fit="resample")
     for workers in (2, 0):
         result = dancedata_loader(fixed, args.epochs, workers, bucket=False)
