@@ -168,6 +168,29 @@ def test_queued_aist_ingests_of_the_same_data_commit_one_version(raw_aist, tmp_p
     _settled(store)
 
 
+def test_a_new_store_being_created_by_another_writer_is_not_refused(raw_aist, tmp_path):
+    """Two ingests started together into a new store: the second looks while the first has
+    made versions/ (and store.json's temporary file) but not store.json yet. It used to stop
+    with "directory exists, is not empty and is not a dancedata store" (23 of 30 runs of two
+    synchronised processes); it now joins in. A folder holding anything else is still refused."""
+    from dancedata.errors import StoreError
+
+    store = tmp_path / "store"
+    (store / "versions").mkdir(parents=True)
+    (store / ".tmp-store.json.12345").write_text("{")
+    run_cli(*_ingest_aist(raw_aist[0], store))
+    assert StoreLayout(store).committed_versions() == ["v1"]
+    other = tmp_path / "not-a-store"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    with pytest.raises(StoreError, match="is not empty and is not a dancedata store"):
+        StoreLayout(other).ensure()
+    (other / "notes.txt").unlink()
+    (other / "versions" / "v1").mkdir(parents=True)  # not the empty folder a creator makes
+    with pytest.raises(StoreError, match="is not empty and is not a dancedata store"):
+        StoreLayout(other).ensure()
+
+
 def test_aist_ingest_queued_behind_the_same_ingest_writes_nothing(raw_aist, frozen, tmp_path):
     raw, other = raw_aist
     store = tmp_path / "store"

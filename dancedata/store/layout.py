@@ -186,6 +186,20 @@ def manifest_problem(manifest: Any) -> str | None:
     return None
 
 
+def _empty_or_being_created(root: Path) -> bool:
+    """True when ``root`` holds nothing, or only what another writer creating a store there at
+    this very moment makes before store.json (an empty versions/ folder, store.json's
+    temporary file): two ingests started together into a new store must not fail with "not a
+    dancedata store"."""
+    for entry in root.iterdir():
+        if entry.name == VERSIONS_DIR and entry.is_dir() and not any(entry.iterdir()):
+            continue
+        if entry.name.startswith(f"{TEMP_PREFIX}{STORE_FILE}."):
+            continue
+        return False
+    return True
+
+
 def parse_manifest(text: str | bytes, where: str | Path) -> dict[str, Any]:
     """Parse and check the text of a manifest.json; StoreError naming ``where`` when it is not
     JSON or not a usable manifest (see :func:`manifest_problem`)."""
@@ -273,12 +287,13 @@ class StoreLayout:
         """Create an empty store (store.json with no latest version) if there is none."""
         self.check_not_a_file()
         if not self.exists():
-            if self.root.exists() and any(self.root.iterdir()):
+            if self.root.exists() and not _empty_or_being_created(self.root):
                 raise StoreError(
                     "directory exists, is not empty and is not a dancedata store", self.root
                 )
             self.versions_dir.mkdir(parents=True, exist_ok=True)
-            self.write_pointer(None)
+            if not self.exists():  # (another writer creating it may have finished meanwhile)
+                self.write_pointer(None)
         else:
             self.read_pointer()
             self.versions_dir.mkdir(parents=True, exist_ok=True)
