@@ -13,7 +13,9 @@ Replace or append: by default the new version holds exactly the given files (its
 recorded, nothing is carried over), as the other ingest commands do. ``append`` keeps the
 latest version's sequences, music and splits and adds the new files after them; the latest
 version must be a BVH store with the same skeleton, and sequence ids must not repeat. Either way
-the version is an *ingest* stage: featurize and segment run again on it.
+the version is an *ingest* stage: featurize and segment run again on it. "Latest" means latest
+once this command holds the store lock (see :mod:`dancedata.ingest.locked`): an append queued
+behind another writer adds to that writer's version.
 
 Arrays and attrs are described in docs/STORE.md ("BVH stores").
 """
