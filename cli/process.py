@@ -82,6 +82,14 @@ def featurize(
     cache_dir: CacheDir = None,
     accept_changed_music: AcceptChangedMusic = False,
     max_audio_seconds: MaxAudioSeconds = 600.0,
+    resampler: Annotated[
+        str,
+        typer.Option(
+            help="librosa res_type of the decode to the feature rate: soxr_hq (librosa >= 0.10's "
+            "default), kaiser_best (resampy; librosa < 0.10's default, which FACT-era features "
+            "used), kaiser_fast, soxr_vhq/mq/lq/qq, fft, scipy, polyphase. Recorded."
+        ),
+    ] = "soxr_hq",
     workers: Workers = 1,
     dask: Dask = None,
     version: VersionOpt = None,
@@ -124,6 +132,7 @@ def featurize(
         cache_dir=str(cache_dir) if cache_dir else None,
         accept_changed_music=accept_changed_music,
         max_audio_seconds=max_audio_seconds or None,
+        resampler=resampler,
     )
     report(run(store, options), "featurize", as_json, store=str(store))
 

@@ -37,7 +37,21 @@ from dancedata.errors import InputError
 MAX_ABS_SAMPLE = 1000.0
 # Frames read per block (~6 s at 44.1 kHz): bounds the extra memory of the multichannel read.
 BLOCK_FRAMES = 1 << 18
-RES_TYPE = "soxr_hq"  # librosa.load's default resampler
+RES_TYPE = "soxr_hq"  # librosa.load's default resampler (librosa >= 0.10)
+# librosa res_type names featurize --resampler accepts. kaiser_best/kaiser_fast run resampy
+# (librosa < 0.10's load default was kaiser_best: what FACT-era features were made with).
+RESAMPLERS: tuple[str, ...] = (
+    "soxr_hq",
+    "soxr_vhq",
+    "soxr_mq",
+    "soxr_lq",
+    "soxr_qq",
+    "kaiser_best",
+    "kaiser_fast",
+    "fft",
+    "scipy",
+    "polyphase",
+)
 # Default limit on the seconds of one track decoded at once (featurize --max-audio-seconds; the
 # tempo estimate of ingest bvh/video without --bpm). Measured with the default audio families
 # (fact, offline stems, nmfd), one process: 10 decoded minutes peak at 2.5 GB RSS (0.5 GB of it
@@ -74,9 +88,11 @@ def decode_mono(
     *,
     path: str | Path | None = None,
     max_seconds: float | None = None,
+    res_type: str = RES_TYPE,
 ) -> DecodedAudio:
     """Mono float32 at ``sr`` Hz from ``source`` (a path, or an open binary handle of the file
-    at ``path``), at most its first ``max_seconds`` seconds (None: all of it).
+    at ``path``), at most its first ``max_seconds`` seconds (None: all of it), resampled by
+    ``librosa.resample(..., res_type=res_type)`` (one of :data:`RESAMPLERS`).
 
     Raises:
         InputError: naming the file, when it cannot be decoded, holds no samples, or holds a
@@ -89,7 +105,7 @@ def decode_mono(
         handle = sf.SoundFile(source)
     except (RuntimeError, sf.LibsndfileError, TypeError, ValueError) as exc:
         if isinstance(source, (str, Path)) or path is not None:
-            return _decode_with_librosa(name, sr, max_seconds)
+            return _decode_with_librosa(name, sr, max_seconds, res_type)
         raise _undecodable(name, exc) from None
     with handle:
         native_sr = int(handle.samplerate)
@@ -97,7 +113,9 @@ def decode_mono(
         header = max(int(handle.frames), 0)
         limit = header if max_seconds is None else min(header, _frames(max_seconds, native_sr))
         mono = _read_mono(handle, limit, native_sr, channels, name)
-    return DecodedAudio(_resample(mono, native_sr, sr), sr, native_sr, mono.size, header, channels)
+    return DecodedAudio(
+        _resample(mono, native_sr, sr, res_type), sr, native_sr, mono.size, header, channels
+    )
 
 
 def _frames(seconds: float, sr: int) -> int:
@@ -159,16 +177,26 @@ def check_samples(block: np.ndarray, first: int, sr: int, name: str | Path) -> N
     )
 
 
-def _resample(mono: np.ndarray, native_sr: int, sr: int) -> np.ndarray:
+def _resample(mono: np.ndarray, native_sr: int, sr: int, res_type: str = RES_TYPE) -> np.ndarray:
+    if res_type not in RESAMPLERS:
+        raise InputError(f"unknown resampler {res_type!r}; choose from {', '.join(RESAMPLERS)}")
     if native_sr == sr:
         return np.ascontiguousarray(mono, dtype=np.float32)
     import librosa
 
-    y = librosa.resample(mono, orig_sr=native_sr, target_sr=sr, res_type=RES_TYPE)
+    try:
+        y = librosa.resample(mono, orig_sr=native_sr, target_sr=sr, res_type=res_type)
+    except ImportError as exc:  # kaiser_*: resampy, a dependency since issue 14
+        raise InputError(
+            f"resampler {res_type} needs a package that is not installed ({exc}): "
+            "pip install resampy"
+        ) from None
     return np.ascontiguousarray(y, dtype=np.float32)
 
 
-def _decode_with_librosa(path: Path, sr: int, max_seconds: float | None) -> DecodedAudio:
+def _decode_with_librosa(
+    path: Path, sr: int, max_seconds: float | None, res_type: str = RES_TYPE
+) -> DecodedAudio:
     """Content libsndfile cannot read (e.g. AAC in a video, through audioread and ffmpeg)."""
     import librosa
 
@@ -193,7 +221,7 @@ def _decode_with_librosa(path: Path, sr: int, max_seconds: float | None) -> Deco
     n = frames.shape[0]
     header = n if max_seconds is None else n + 1  # unknown: a bounded read may have stopped early
     return DecodedAudio(
-        _resample(mono.astype(np.float32), int(native_sr), sr),
+        _resample(mono.astype(np.float32), int(native_sr), sr, res_type),
         sr,
         int(native_sr),
         n,

@@ -99,7 +99,9 @@ class TrackAudio:
             from dancedata.pipeline.music_inputs import decode_checked
 
             start = time.perf_counter()
-            decoded = decode_checked(self.path, self.cfg.sr, self.sha256, self.span_s)
+            decoded = decode_checked(
+                self.path, self.cfg.sr, self.sha256, self.span_s, res_type=self.cfg.res_type
+            )
             self._y, self.decoded_s = decoded.y, decoded.decoded_s
             self.timings["decode"] = time.perf_counter() - start
         return self._y

@@ -83,6 +83,9 @@ class FeaturizeOptions:
     audio_families: list[str] | None = None  # None: default_families(audio_settings)
     audio_config: AudioFeatureConfig | None = None  # default: derived from the motion fps
     audio_settings: AudioSettings = field(default_factory=AudioSettings)  # stems, NMFD, ...
+    # librosa res_type of the decode to the feature rate (recorded as audio.res_type);
+    # kaiser_best reproduces FACT-era (librosa < 0.10) features. Unused with audio_config.
+    resampler: str = "soxr_hq"
     version: str | None = None  # parent version; default latest
     wait_for_lock: bool = False
     # Execution only (never changes the data, so not in config()):
@@ -147,6 +150,12 @@ def _validate(options: FeaturizeOptions) -> None:
         problems = family_problems(options.audio_family_names(), options.audio_settings)
         if problems:
             raise InputError("; ".join(problems))
+    from dancedata.io.audio_decode import RESAMPLERS
+
+    if options.resampler not in RESAMPLERS:
+        raise InputError(
+            f"unknown resampler {options.resampler!r}; choose from {', '.join(RESAMPLERS)}"
+        )
     unknown = sorted(set(options.representations) - set(KNOWN_REPRESENTATIONS))
     if unknown:
         raise InputError(
@@ -181,7 +190,7 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
     fps = float(motion_attrs.get("fps", 60.0))
     if options.euler_order is None:
         options.euler_order = motion_attrs.get("euler_orders") or DEFAULT_EULER_ORDER
-    audio_cfg = options.audio_config or AudioFeatureConfig(fps=fps)
+    audio_cfg = options.audio_config or AudioFeatureConfig(fps=fps, res_type=options.resampler)
     if options.audio and abs(audio_cfg.fps - fps) > 1e-9:
         raise InputError(f"audio fps {audio_cfg.fps} differs from the motion fps {fps}")
     config = options.config(audio_cfg)

@@ -185,7 +185,7 @@ def _verify(row: dict[str, Any], accept_changed: bool) -> CheckedTrack:
 
 
 def decode_checked(
-    path: str, sr: int, sha256: str | None, max_seconds: float | None
+    path: str, sr: int, sha256: str | None, max_seconds: float | None, res_type: str = "soxr_hq"
 ) -> DecodedAudio:
     """Decode ``path`` (at most ``max_seconds`` s) from the very bytes hashed here: the file is
     opened once, hashed through the open handle and decoded from it, so the content decoded is
@@ -213,7 +213,9 @@ def decode_checked(
                 f"verified); run ingest again, or pass {ACCEPT_OPTION} to featurize",
                 path,
             )
-        decoded = decode_mono(handle, sr, path=path, max_seconds=max_seconds)
+        decoded = decode_mono(
+            handle, sr, path=path, max_seconds=max_seconds, res_type=res_type
+        )
         after = _identity(os.fstat(handle.fileno()))
     try:
         now = _identity(os.stat(path))  # the librosa fallback decodes by path
