@@ -100,6 +100,11 @@ def test_every_shipped_config_fills_its_data_and_statistics_cells(
                     assert cell.value is not None and np.isfinite(cell.value), (table_id, label)
                     assert cell.seed is not None
     assert output.record["split"] == "crossmodal:train"
+    if config_path.stem == "thesis-verification":  # the thesis's own check (000 §4.1)
+        for metric in ("fid_g", "fid_k"):
+            by_n = {r["n_keyframes"]: r["value"] for r in rows
+                    if r["row_key"] == "even+linear_slerp" and r["metric"] == metric}  # fmt: skip
+            assert by_n[3] > by_n[5] > by_n[9] > 0, (metric, by_n)
 
 
 def test_without_an_smpl_model_fid_cells_say_why(store: Path, tmp_path: Path, monkeypatch) -> None:
