@@ -75,7 +75,7 @@ def test_metric_columns_and_recorded_reasons_as_footnotes() -> None:
 def test_compare_seed_cells_read_ours_then_seed() -> None:
     rows = [result("even+linear_slerp", 3, "fid_g", 40.0)]
     line = render_table("4.1", rows, [], compare_seed=True).splitlines()[4]
-    assert line.startswith("| KF_{even_rotmat} | 40.00 (42.73) | —[1] (20.89) | —[1] (6.75) |")
+    assert line == "| KF_{even_rotmat} | 40.00 (42.73) | —[1] (20.89) | —[1] (6.75) | -6% | — | — |"
     # 4.9 has no merged_full row in the seed: the layout keeps 4 rows
     assert len(build("4.9", [], []).labels) == 4
 
@@ -92,6 +92,9 @@ def test_csv_and_latex() -> None:
     assert "$KF_{even_eulers}/\\hat{D}_{eulers_linear}$ & 0.25 & ---" not in latex
     assert "$KF_{even_eulers}/\\hat{D}_{eulers_linear}$ & 0.25 & —\\textsuperscript{1}" in latex
     assert latex.count("\\\\") == 1 + 4  # header + 4 rows
+    compared = render_table("4.10", rows, [], "latex", compare_seed=True)
+    assert "0.25 (0.25) & —\\textsuperscript{1} (16.75)" in compared
+    assert "& +0\\% & —" in compared and "$\\Delta$ MSE" in compared
 
 
 def test_choreograph_tables_render_dashes_with_the_reason() -> None:

@@ -172,6 +172,13 @@ def _cell_text(cell: Cell, fmt: str, notes: list[str], compare_seed: bool,
     return ours
 
 
+def _relative(cell: Cell) -> str:
+    """The relative difference block of ``compare_seed`` (spec §5.5), in percent."""
+    if cell.value is None or cell.seed is None or cell.seed == 0:
+        return DASH
+    return f"{100.0 * (cell.value - cell.seed) / abs(cell.seed):+.0f}%"
+
+
 def render_table(table_id: str, results: list[dict[str, Any]],
                  skipped: list[dict[str, Any]] | None = None, fmt: str = "md",
                  compare_seed: bool = False) -> str:  # fmt: skip
@@ -188,7 +195,12 @@ def render_table(table_id: str, results: list[dict[str, Any]],
     ]
     title = f"Table {table.table_id}: {table.caption}"
     if compare_seed:
-        title += " Cells: ours (seed)."
+        title += " Cells: ours (seed); Δ: (ours − seed) / seed."
+        table.header = [*table.header, *(f"Δ {h}" for h in table.header[1:])]
+        body = [
+            [*line, *(_relative(c) for c in cells)]
+            for line, cells in zip(body, table.cells, strict=True)
+        ]
     if fmt == "md":
         out = [f"**{title}**", "", "| " + " | ".join(table.header) + " |",
                "|" + "---|" + "---:|" * (len(table.header) - 1)]  # fmt: skip
@@ -207,6 +219,7 @@ def render_table(table_id: str, results: list[dict[str, Any]],
         for i, note in enumerate(notes, 1):
             writer.writerow([f"[{i}]", note])
         return buffer.getvalue()
+    body = [[cell.replace("%", "\\%") for cell in line] for line in body]
     return _latex(table, body, notes, title)
 
 
@@ -221,10 +234,11 @@ def _latex(table: Rendered, body: list[list[str]], notes: list[str], title: str)
     registry = seed_tables()["row_registry"]
     seed_spec = seed_tables()["tables"].get(table.table_id, {})
     rows = seed_spec.get("rows", [])
+    header = " & ".join(_tex(h).replace("Δ", "$\\Delta$") for h in table.header)
     out = ["\\begin{table}[ht]", "\\centering",
            f"\\caption{{{_tex(table.caption)}}}",
            "\\begin{tabular}{l" + "r" * (len(table.header) - 1) + "}", "\\hline",
-           " & ".join(_tex(h) for h in table.header) + " \\\\", "\\hline"]  # fmt: skip
+           header + " \\\\", "\\hline"]  # fmt: skip
     for i, (label, line) in enumerate(zip(table.labels, body, strict=True)):
         raw = rows[i]["label"] if i < len(rows) else label
         if raw in (v["label"] for v in registry.values()) or raw.startswith("KF_"):
