@@ -407,6 +407,12 @@ def ingest_video(
     options.check()
     paths = [Path(v) for v in videos]
     if not paths:  # pose files only: no audio track, music only from --music
+        if options.settings.fps is None:
+            raise InputError(
+                "no video, so the pose files carry no frame rate: give --fps (the video's frame "
+                "rate the poses were estimated at)",
+                options.poses or options.joints_csv,
+            )
         options = replace(options, no_music=options.no_music or options.music is None)
     check_unique_stems(paths)
     run = _Run(on_error=options.on_error, options=options)
