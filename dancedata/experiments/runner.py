@@ -231,8 +231,10 @@ def run_experiment(
     from dancedata.loader import DanceStore
 
     began = time.perf_counter()
+    from dancedata.store.reader import VersionReader
+
     loader = DanceStore(store, version)
-    reader = loader._reader
+    reader = VersionReader(store, loader.version)
     params = config.keyframe_params()
     metrics = config.metrics
     wants_fid = any(m in ("fid_g", "fid_k") for m in metrics)
@@ -305,7 +307,7 @@ def run_experiment(
         "config_path": str(config.path) if config.path else None,
         "tables": config.data["tables"],
         "config": config.data,
-        "store": str(Path(store).resolve()),
+        "store": str(store) if "://" in str(store) else str(Path(store).resolve()),
         "store_version": loader.version,
         "store_fingerprint": reader.manifest["fingerprint"],
         "split": data.label,
