@@ -68,9 +68,18 @@ DEFAULTS: dict[str, Any] = {
     "device": "cpu",
     "niter": 1,
     "wiener_win_len": 300,
-    "chunk_seconds": 30.0,
-    "overlap_seconds": 1.0,
+    "chunk_seconds": None,
+    "overlap_seconds": 4.0,
+    "memory_mb": 4096.0,
 }
+# Resampler from a file's rate to the model's (44.1 kHz) when they differ.
+INPUT_RESAMPLER = "soxr_hq"
+# Peak MB per complex STFT value of the mix (bins × frames × channels) of one Separator pass with
+# four targets, plus a fixed part: measured with ru_maxrss on CPU, umxhq-shaped network (n_fft
+# 4096, hop 1024, 2 channels), niter 1, wiener_win_len 300: 334 MB for 10 s, 852 MB for 30 s of
+# stereo 44.1 kHz, i.e. 25.9 MB/s = 1.47e-4 MB per value and 75 MB fixed (rounded up below).
+MB_PER_STFT_VALUE = 1.5e-4
+FIXED_MB = 100.0
 
 
 def _import_torch() -> Any:
@@ -94,11 +103,79 @@ def hub_checkpoint_dir() -> Path:
     return Path(_import_torch().hub.get_dir()) / "checkpoints"
 
 
+SEPARATOR_JSON = "separator.json"
+
+
+def is_model_folder(weights_dir: str | Path | None) -> bool:
+    """Whether ``weights_dir`` is an OpenUnmix model folder as ``openunmix`` itself writes and
+    loads them (``separator.json`` next to ``<target>.pth``)."""
+    return weights_dir is not None and (Path(weights_dir).expanduser() / SEPARATOR_JSON).is_file()
+
+
+def read_separator_json(weights_dir: str | Path) -> dict[str, Any]:
+    """The STFT and audio settings of an OpenUnmix model folder's ``separator.json``:
+    {"sample_rate" (Hz), "nfft", "nhop" (samples), "nb_channels"}, checked."""
+    import json
+
+    path = Path(weights_dir).expanduser() / SEPARATOR_JSON
+    try:
+        conf = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read OpenUnmix separator settings ({exc})", path) from None
+    need = {"sample_rate": float, "nfft": int, "nhop": int, "nb_channels": int}
+    if not isinstance(conf, dict) or any(key not in conf for key in need):
+        raise InputError(f"separator.json needs keys {', '.join(need)}", path)
+    try:
+        out = {key: kind(conf[key]) for key, kind in need.items()}
+    except (TypeError, ValueError):
+        raise InputError(
+            "separator.json: sample_rate, nfft, nhop, nb_channels must be numbers", path
+        ) from None
+    if out["sample_rate"] <= 0 or out["nfft"] < 2 or not 0 < out["nhop"] <= out["nfft"]:
+        raise InputError(f"separator.json: implausible settings {out}", path)
+    if out["nb_channels"] not in (1, 2):
+        raise InputError(
+            f"separator.json: nb_channels must be 1 or 2, got {out['nb_channels']}", path
+        )
+    return out
+
+
+def _model_folder_weights(root: Path) -> dict[str, Path]:
+    """{stem: path} in an OpenUnmix model folder: ``<stem>.pth``, else the one ``<stem>*.pth``
+    (openunmix's own loader takes ``<target>*.pth``, e.g. ``vocals-b62c91ce.pth``)."""
+    found: dict[str, Path] = {}
+    missing: list[str] = []
+    for stem in STEM_NAMES:
+        exact = root / f"{stem}.pth"
+        matches = [exact] if exact.is_file() else sorted(root.glob(f"{stem}*.pth"))
+        if len(matches) > 1:
+            raise InputError(
+                f"OpenUnmix model folder has several {stem} weight files "
+                f"({', '.join(m.name for m in matches)}); keep one",
+                root,
+            )
+        if matches:
+            found[stem] = matches[0]
+        else:
+            missing.append(f"{stem}.pth")
+    if missing:
+        raise InputError(
+            f"OpenUnmix model folder (it has {SEPARATOR_JSON}) lacks {', '.join(missing)}: "
+            "dancedata needs all four stems (drums, bass, vocals, other)",
+            root,
+        )
+    return found
+
+
 def find_weights(model: str = "umxhq", weights_dir: str | Path | None = None) -> dict[str, Path]:
     """Path of each stem's weight file, {stem: path}; raises InputError naming every missing file.
 
-    See the module docstring for the search order. Cheap: no weights are read.
+    See the module docstring for the search order. An OpenUnmix model folder (one with
+    ``separator.json``) is read as ``openunmix`` reads it, whatever ``model`` says. Cheap: no
+    weights are read.
     """
+    if is_model_folder(weights_dir):
+        return _model_folder_weights(Path(weights_dir).expanduser())  # type: ignore[arg-type]
     if model not in MODELS:
         raise InputError(f"unknown OpenUnmix model {model!r}; choose one of {', '.join(MODELS)}")
     spec = MODELS[model]
@@ -168,7 +245,11 @@ def _build_target(path: Path, torch: Any) -> Any:
 
 @functools.lru_cache(maxsize=2)
 def _cached_separator(
-    paths: tuple[tuple[str, str, float], ...], device: str, niter: int, wiener_win_len: int | None
+    paths: tuple[tuple[str, str, float], ...],
+    device: str,
+    niter: int,
+    wiener_win_len: int | None,
+    stft: tuple[float, int, int, int] | None,
 ) -> Any:
     torch = _import_torch()
     from openunmix.model import Separator
@@ -179,13 +260,21 @@ def _cached_separator(
         raise InputError(f"OpenUnmix stem models disagree in bins/channels: {sorted(shapes)}")
     nb_bins, nb_channels = shapes.pop()
     n_fft = 2 * (nb_bins - 1)
+    sample_rate, n_hop = float(MODEL_SAMPLE_RATE), n_fft // 4
+    if stft is not None:  # separator.json of an OpenUnmix model folder
+        sample_rate, json_fft, n_hop, json_channels = stft
+        if (json_fft // 2 + 1, json_channels) != (nb_bins, nb_channels):
+            raise InputError(
+                f"separator.json says nfft {json_fft}, {json_channels} channel(s), but the weights "
+                f"have {nb_bins} bins (nfft {n_fft}) and {nb_channels} channel(s)"
+            )
     separator = Separator(
         target_models=targets,
         niter=niter,
         residual=False,
-        sample_rate=float(MODEL_SAMPLE_RATE),
+        sample_rate=sample_rate,
         n_fft=n_fft,
-        n_hop=n_fft // 4,
+        n_hop=n_hop,
         nb_channels=nb_channels,
         wiener_win_len=wiener_win_len,
         filterbank="torch",
@@ -204,14 +293,87 @@ def load_separator(
     """An ``openunmix.model.Separator`` for the four stems, in eval mode on ``device``.
 
     Cached per weight files (path and mtime) and settings, so a featurize run loads weights once.
-    ``device`` is a torch device name, or ``"auto"`` for CUDA when available, else CPU.
+    ``device`` is a torch device name, or ``"auto"`` for CUDA when available, else CPU. From an
+    OpenUnmix model folder the sample rate, n_fft and hop come from its ``separator.json``
+    (as ``openunmix.utils.load_separator`` reads them); otherwise 44.1 kHz, n_fft from the
+    weights' bins and hop n_fft / 4 (the published models' settings).
     """
     torch = _import_torch()
     if device == "auto":
         device = "cuda" if torch.cuda.is_available() else "cpu"
     files = find_weights(model, weights_dir)
     key = tuple((stem, str(path), path.stat().st_mtime) for stem, path in files.items())
-    return _cached_separator(key, device, int(niter), wiener_win_len)
+    stft = None
+    if is_model_folder(weights_dir):
+        conf = read_separator_json(weights_dir)  # type: ignore[arg-type]
+        stft = (conf["sample_rate"], conf["nfft"], conf["nhop"], conf["nb_channels"])
+    return _cached_separator(key, device, int(niter), wiener_win_len, stft)
+
+
+def separator_settings(separator: Any) -> dict[str, Any]:
+    """What the loaded separator runs at: {"sample_rate" (Hz), "n_fft", "n_hop", "channels"}."""
+    target = next(iter(separator.target_models.values()))
+    return {
+        "sample_rate": float(separator.sample_rate),
+        "n_fft": int(separator.stft.n_fft),
+        "n_hop": int(separator.stft.n_hop),
+        "channels": int(target.fc1.in_features // target.nb_bins),
+    }
+
+
+def whole_track_mb(n_samples: int, n_fft: int, n_hop: int, channels: int, n_targets: int) -> float:
+    """Estimated peak memory (MB) of one OpenUnmix ``Separator`` pass over ``n_samples`` at the
+    model rate, beyond the models themselves: :data:`MB_PER_STFT_VALUE` MB per complex STFT
+    value of the mix (bins × frames × channels) plus :data:`FIXED_MB`, measured on CPU (umxhq:
+    about 26 MB per second of stereo 44.1 kHz, so 4096 MB holds 2.6 minutes) and scaled by the
+    number of targets over the four it was measured with."""
+    frames = n_samples // n_hop + 1
+    values = (n_fft // 2 + 1) * frames * channels
+    return FIXED_MB + values * MB_PER_STFT_VALUE * max(n_targets, 1) / 4.0
+
+
+def separation_plan(
+    n_samples: int,
+    sample_rate: float,
+    *,
+    n_fft: int,
+    n_hop: int,
+    channels: int,
+    n_targets: int = 4,
+    chunk_seconds: float | None = None,
+    overlap_seconds: float = 4.0,
+    memory_mb: float = 4096.0,
+) -> dict[str, Any]:
+    """How a track of ``n_samples`` (model rate) is separated, as recorded in the store.
+
+    ``{"method": "whole_track"}`` when ``chunk_seconds`` is None and the estimate of
+    :func:`whole_track_mb` fits ``memory_mb``: one pass, exactly what ``openunmix`` computes.
+    Otherwise ``{"method": "overlap_add_crossfade", "chunk_seconds", "overlap_seconds"}``:
+    chunks of ``chunk_seconds`` (or the longest that fits ``memory_mb``), each separated alone,
+    blended by linear cross-fades over ``overlap_seconds`` (see :func:`run_chunked`).
+    ``estimated_mb`` is the whole-track estimate either way.
+    """
+    estimate = whole_track_mb(n_samples, n_fft, n_hop, channels, n_targets)
+    plan: dict[str, Any] = {"estimated_mb": round(estimate, 1), "memory_mb": float(memory_mb)}
+    if chunk_seconds is None and estimate <= memory_mb:
+        return {"method": "whole_track", **plan}
+    if chunk_seconds is None:
+        per_second = whole_track_mb(int(sample_rate), n_fft, n_hop, channels, n_targets) - FIXED_MB
+        chunk_seconds = float(np.floor(max(memory_mb - FIXED_MB, 0.0) / per_second))
+        floor = 2.0 * overlap_seconds + 1.0
+        if chunk_seconds < floor:
+            raise InputError(
+                f"OpenUnmix memory limit {memory_mb:g} MB allows chunks of {chunk_seconds:g} s, "
+                f"under {floor:g} s (twice the {overlap_seconds:g} s overlap, plus 1 s): "
+                "raise the limit or shorten the overlap"
+            )
+    return {
+        "method": "overlap_add_crossfade",
+        "chunk_seconds": float(chunk_seconds),
+        "overlap_seconds": float(overlap_seconds),
+        "crossfade": "linear",
+        **plan,
+    }
 
 
 def chunk_bounds(n_samples: int, chunk: int, overlap: int) -> list[tuple[int, int]]:
@@ -240,10 +402,13 @@ def crossfade_weights(length: int, overlap: int, first: bool, last: bool) -> np.
 def run_chunked(
     separator: Any, audio: np.ndarray, chunk: int, overlap: int, device: str
 ) -> np.ndarray:
-    """Separator output for (channels, samples) model-rate audio → (stems, channels, samples).
+    """Separator output for (channels, samples) model-rate audio, averaged over the channels:
+    (stems, samples) float32, stems in ``separator.target_models`` order.
 
-    Each chunk runs alone through the network; overlapping parts are blended with
-    :func:`crossfade_weights` and normalised by the summed weights, so the blend is exact.
+    A signal no longer than ``chunk`` is one pass (what ``openunmix`` computes for the file).
+    Longer ones go in chunks of ``chunk`` samples (see :func:`chunk_bounds`), each separated alone;
+    overlapping parts are blended with :func:`crossfade_weights` and normalised by the summed
+    weights, so the blend is exact where the chunks agree.
 
     OpenUnmix's EM step inverts 2 × 2 spatial covariances regularised by sqrt(1e-10); with
     duplicated-mono input and channel-symmetric estimates they are singular, and in float32 the
@@ -253,18 +418,23 @@ def run_chunked(
     torch = _import_torch()
     n_samples = audio.shape[-1]
     bounds = chunk_bounds(n_samples, chunk, overlap)
-    out = np.zeros((len(separator.target_models),) + audio.shape, dtype=np.float64)
-    total = np.zeros(n_samples, dtype=np.float64)
+    out = np.zeros((len(separator.target_models), n_samples), dtype=np.float32)
+    total = np.zeros(n_samples, dtype=np.float32)
     with torch.inference_mode():
         for i, (start, stop) in enumerate(bounds):
             piece = torch.as_tensor(audio[None, :, start:stop], dtype=torch.float32, device=device)
-            estimate = separator(piece)[0].detach().cpu().numpy().astype(np.float64)
+            estimate = separator(piece)[0].detach().cpu().numpy()
             if not np.all(np.isfinite(estimate)) and separator.niter > 0:
                 estimate = _without_em(separator, piece)
+            mono = estimate.astype(np.float64).mean(axis=1)
+            del estimate
+            if len(bounds) == 1:
+                return mono.astype(np.float32)
             weights = crossfade_weights(stop - start, overlap, i == 0, i == len(bounds) - 1)
-            out[..., start:stop] += estimate * weights
-            total[start:stop] += weights
-    return out / total
+            out[:, start:stop] += (mono * weights).astype(np.float32)
+            total[start:stop] += weights.astype(np.float32)
+    out /= total
+    return out
 
 
 def _without_em(separator: Any, piece: Any) -> np.ndarray:
@@ -285,47 +455,101 @@ def _without_em(separator: Any, piece: Any) -> np.ndarray:
         separator.niter = niter
 
 
-def separate(
-    y: np.ndarray,
+def model_input(audio: np.ndarray, sr: float, model_sr: float, channels: int) -> np.ndarray:
+    """(channels, samples) audio at ``sr`` Hz → what the model is fed, as ``openunmix`` feeds it
+    (``openunmix.utils.preprocess``): mono duplicated to two channels, only the first two of
+    more; for a one-channel model the channel mean. Resampled to ``model_sr`` with
+    :data:`INPUT_RESAMPLER` when the rates differ (openunmix uses torchaudio's sinc resampler)."""
+    import librosa
+
+    audio = np.atleast_2d(np.asarray(audio, dtype=np.float32))
+    if channels == 1:
+        audio = audio.mean(axis=0, keepdims=True)
+    elif audio.shape[0] == 1:
+        audio = np.repeat(audio, channels, axis=0)
+    else:
+        audio = audio[:channels]
+    if sr != model_sr:
+        audio = librosa.resample(audio, orig_sr=sr, target_sr=model_sr, res_type=INPUT_RESAMPLER)
+    return np.ascontiguousarray(audio, dtype=np.float32)
+
+
+def separate_channels(
+    audio: np.ndarray,
     sr: float,
+    *,
+    out_sr: float | None = None,
+    out_length: int | None = None,
+    res_type: str = "soxr_hq",
     model: str = "umxhq",
     weights_dir: str | Path | None = None,
     device: str = "cpu",
     niter: int = 1,
     wiener_win_len: int | None = 300,
-    chunk_seconds: float = 30.0,
-    overlap_seconds: float = 1.0,
-) -> dict[str, np.ndarray]:
-    """Four OpenUnmix stems of ``y`` ((samples,) or (channels, samples)) at ``sr`` Hz.
+    chunk_seconds: float | None = None,
+    overlap_seconds: float = 4.0,
+    memory_mb: float = 4096.0,
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Four OpenUnmix stems of ``audio`` ((samples,) or (channels, samples) at ``sr`` Hz, e.g. a
+    file's own samples at its own rate), and the plan they were made with.
 
-    Stems are mono float32 with ``y``'s length and rate. See :func:`load_separator` for the model
-    settings and :func:`run_chunked` for ``chunk_seconds`` / ``overlap_seconds``.
+    The model sees the channels and the rate of the input (see :func:`model_input`), over the
+    whole track or in cross-faded chunks (see :func:`separation_plan`). Each stem is then the mean
+    of its channels, resampled from the model rate to ``out_sr`` Hz (default ``sr``) with
+    ``librosa.resample(res_type=res_type)`` and cut or zero-padded to ``out_length`` samples
+    (default: the input's length at ``out_sr``, as librosa.resample gives it): mono float32.
     """
     import librosa
 
     separator = load_separator(model, weights_dir, device, niter, wiener_win_len)
     device = str(separator.sample_rate.device)
-    audio = np.atleast_2d(np.asarray(y, dtype=np.float32))
-    n_samples = audio.shape[-1]
-    if sr != MODEL_SAMPLE_RATE:
-        audio = librosa.resample(audio, orig_sr=sr, target_sr=MODEL_SAMPLE_RATE, res_type="soxr_hq")
-    channels = next(iter(separator.target_models.values())).fc1.in_features
-    channels //= next(iter(separator.target_models.values())).nb_bins
-    if audio.shape[0] != channels:
-        audio = np.repeat(audio.mean(axis=0, keepdims=True), channels, axis=0)
-    n_model = audio.shape[-1]
-    n_fft = 2 * (next(iter(separator.target_models.values())).nb_output_bins - 1)
-    if n_model < n_fft:  # the STFT's reflect padding needs at least n_fft / 2 samples
-        audio = np.pad(audio, ((0, 0), (0, n_fft - n_model)))
-    chunk = int(round(chunk_seconds * MODEL_SAMPLE_RATE))
-    overlap = int(round(overlap_seconds * MODEL_SAMPLE_RATE))
-    estimates = run_chunked(separator, audio, chunk, overlap, device)
+    stft = separator_settings(separator)
+    model_sr = stft["sample_rate"]
+    out_sr = float(sr if out_sr is None else out_sr)
+    audio = np.atleast_2d(np.asarray(audio, dtype=np.float32))
+    if out_length is None:
+        out_length = (
+            int(np.ceil(audio.shape[-1] * out_sr / sr)) if out_sr != sr else audio.shape[-1]
+        )
+    fed = model_input(audio, sr, model_sr, stft["channels"])
+    n_model = fed.shape[-1]
+    if n_model < stft["n_fft"]:  # the STFT's reflect padding needs at least n_fft / 2 samples
+        fed = np.pad(fed, ((0, 0), (0, stft["n_fft"] - n_model)))
+    plan = separation_plan(
+        fed.shape[-1],
+        model_sr,
+        n_fft=stft["n_fft"],
+        n_hop=stft["n_hop"],
+        channels=stft["channels"],
+        n_targets=len(separator.target_models),
+        chunk_seconds=chunk_seconds,
+        overlap_seconds=overlap_seconds,
+        memory_mb=memory_mb,
+    )
+    overlap = int(round(overlap_seconds * model_sr))
+    if plan["method"] == "whole_track":
+        chunk = fed.shape[-1] + overlap + 1
+    else:
+        chunk = int(round(plan["chunk_seconds"] * model_sr))
+    estimates = run_chunked(separator, fed, chunk, overlap, device)
+    plan.update(
+        input_sr=float(sr),
+        input_channels=int(audio.shape[0]),
+        separation_sr=model_sr,
+        separation_channels=stft["channels"],
+        output_sr=out_sr,
+    )
     stems = {}
-    for name, estimate in zip(separator.target_models.keys(), estimates, strict=True):
-        mono = estimate[:, :n_model].mean(axis=0)
-        if sr != MODEL_SAMPLE_RATE:
-            mono = librosa.resample(
-                mono, orig_sr=MODEL_SAMPLE_RATE, target_sr=sr, res_type="soxr_hq"
-            )
-        stems[name] = librosa.util.fix_length(mono, size=n_samples).astype(np.float32)
-    return stems
+    for name, mono in zip(separator.target_models.keys(), estimates, strict=True):
+        mono = mono[:n_model]
+        if out_sr != model_sr:
+            mono = librosa.resample(mono, orig_sr=model_sr, target_sr=out_sr, res_type=res_type)
+        stems[name] = librosa.util.fix_length(mono, size=out_length).astype(np.float32)
+    return stems, plan
+
+
+def separate(y: np.ndarray, sr: float, **options: Any) -> dict[str, np.ndarray]:
+    """Four OpenUnmix stems of ``y`` ((samples,) or (channels, samples)) at ``sr`` Hz: mono
+    float32 with ``y``'s length and rate. ``options`` are :data:`DEFAULTS`' names; see
+    :func:`separate_channels`."""
+    return separate_channels(y, sr, **options)[0]

@@ -38,6 +38,19 @@ from dancedata.pipeline.audio_family_base import (
 from dancedata.store.checksums import sha256_file
 
 SEPARATE_KEY = "separate"
+# How the openunmix backend is fed and how its stems reach the feature rate (recorded).
+OPENUNMIX_SEPARATION: dict[str, str] = {
+    "input": "the music file's own samples: its channels and its sample rate",
+    "rate": "the model's (separator.json sample_rate; 44100 Hz for umxhq/umxl); a file at "
+    "another rate is resampled to it with librosa soxr_hq",
+    "channels": "the file's own: mono duplicated to the model's 2, only the first 2 of more "
+    "(as openunmix.utils.preprocess)",
+    "chunking": "whole_track when the estimated peak memory fits memory_mb (and chunk_seconds is "
+    "null), else overlap_add_crossfade: chunks separated alone, linear cross-fades over "
+    "overlap_seconds",
+    "output": "per stem the mean of its channels, resampled from the model rate to the feature "
+    "rate with config.audio.res_type and fitted to the mix's length",
+}
 _DEFAULT = AudioSettings()
 
 
@@ -79,21 +92,82 @@ def stem_backend_config(settings: AudioSettings) -> dict[str, Any]:
 
     config = backend_config(settings.stems, **separation_options(settings))
     if settings.stems == "openunmix":
+        from dancedata.compute import stems_openunmix as umx
+
         config.pop("weights_dir", None)
         config["weights"] = weights_checksums(settings.stems_model, settings.stems_weights)
+        if umx.is_model_folder(settings.stems_weights):
+            config["model"] = "openunmix model folder"
+            config["separator_json"] = umx.read_separator_json(settings.stems_weights)  # type: ignore[arg-type]
+        config["separation"] = OPENUNMIX_SEPARATION
     return config
 
 
 def track_stems(track: TrackAudio, settings: AudioSettings) -> dict[str, np.ndarray]:
-    """The track's four stems (mono float32 at ``cfg.sr``), separated once per track."""
+    """The track's four stems (mono float32 at ``cfg.sr``, the mix's length), separated once per
+    track. ``openunmix`` separates the file's own samples (its rate, its channels; see
+    :func:`openunmix_stems`); ``offline`` the feature-rate mono mix."""
     from dancedata.compute.stems import separate
 
+    if settings.stems == "openunmix":
+        return track.shared(SEPARATE_KEY, lambda: openunmix_stems(track, settings))
     return track.shared(
         SEPARATE_KEY,
         lambda: separate(
             track.y, track.cfg.sr, backend=settings.stems, **separation_options(settings)
         ),
     )
+
+
+def openunmix_stems(track: TrackAudio, settings: AudioSettings) -> dict[str, np.ndarray]:
+    """OpenUnmix stems of the track's file as ``openunmix`` separates it: every channel at the
+    file's rate (resampled to the model's 44.1 kHz only when it differs), then per stem the
+    channel mean resampled to the feature rate with the featurize resampler (``cfg.res_type``,
+    as the mix) and fitted to the mix's length. The span decoded is the mix's (``span_s``)."""
+    from dancedata.compute.stems_openunmix import separate_channels
+
+    native = decode_native_checked(track.path, track.sha256, track.span_s)
+    stems, plan = separate_channels(
+        native.samples,
+        native.sr,
+        out_sr=track.cfg.sr,
+        out_length=int(track.y.shape[-1]),
+        res_type=track.cfg.res_type,
+        **separation_options(settings),
+    )
+    if plan["method"] != "whole_track":
+        import warnings
+
+        warnings.warn(
+            f"{track.path}: OpenUnmix separated in {plan['chunk_seconds']:g} s chunks "
+            f"(whole track estimated at {plan['estimated_mb']:g} MB > memory_mb "
+            f"{plan['memory_mb']:g})",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return stems
+
+
+def decode_native_checked(path: str, sha256: str | None, max_seconds: float | None) -> Any:
+    """:func:`dancedata.io.audio_native.decode_native` of ``path`` from the very bytes hashed
+    here, whose sha256 must equal ``sha256`` (the verified one) when given."""
+    from dancedata.errors import InputError
+    from dancedata.io.audio_native import decode_native
+    from dancedata.io.music_file import sha256_of_handle
+
+    try:
+        handle = open(path, "rb")  # noqa: SIM115 - closed below, after the decode
+    except OSError as exc:
+        raise InputError(f"cannot open music file: {exc.strerror or exc}", path) from None
+    with handle:
+        actual = sha256_of_handle(handle)
+        if sha256 and actual != sha256:
+            raise InputError(
+                f"changed since ingest (sha256 {actual[:12]}… on disk, {sha256[:12]}… "
+                "verified); run ingest again, or pass --accept-changed-music to featurize",
+                path,
+            )
+        return decode_native(handle, path=path, max_seconds=max_seconds)
 
 
 def _stem_libraries(settings: AudioSettings | None) -> tuple[str, ...]:
