@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dancedata.errors import StoreError
+from dancedata.store.layout import warn_once
 from dancedata.store.reader import VersionReader
 
 if TYPE_CHECKING:
@@ -128,22 +129,30 @@ class DanceStore:
         """Sequence ids in store order; with ``split``, those of that split of ``scheme``."""
         if split is None:
             return list(self._seq_rows)
+        found = self._split_members(split, scheme)
+        if not found:  # loud, not empty: a known split without sequences gets a warning
+            warn_once(f"{self.path}: {self.empty_split_reason(split, scheme)}")
+        return found
+
+    def _split_members(self, split: str, scheme: str) -> list[str]:
+        """Sequence ids of ``split`` of ``scheme``; StoreError for an unknown scheme or split
+        (a typo is never an empty list)."""
         rows = self.splits.to_pylist()
         chosen = {r["seq_id"] for r in rows if r["scheme"] == scheme and r["split"] == split}
         if not any(r["scheme"] == scheme for r in rows):
             schemes = sorted({r["scheme"] for r in rows})
             raise StoreError(f"no split scheme {scheme!r} in this store (have {schemes})")
         found = [s for s in self._seq_rows if s in chosen]
-        if not found:  # loud, not empty: a typo or an empty split is never an empty dataset
-            raise StoreError(self._empty_split_reason(split, scheme, rows), self.path)
+        names = sorted({r["split"] for r in rows if r["scheme"] == scheme})
+        if not found and split not in names and split not in self._split_file_counts(scheme):
+            raise StoreError(
+                f"no split {split!r} in scheme {scheme!r} (splits: {', '.join(names)})", self.path
+            )
         return found
 
-    def _empty_split_reason(self, split: str, scheme: str, rows: list[dict[str, Any]]) -> str:
-        """Why ``split`` of ``scheme`` has no sequences: unknown name, or what its file listed."""
-        names = sorted({r["split"] for r in rows if r["scheme"] == scheme})
+    def empty_split_reason(self, split: str, scheme: str = "crossmodal") -> str:
+        """Why the known ``split`` of ``scheme`` has no sequences: what its split file listed."""
         listed = self._split_file_counts(scheme)
-        if split not in names and split not in listed:
-            return f"no split {split!r} in scheme {scheme!r} (splits: {', '.join(names)})"
         text = f"split {split!r} of scheme {scheme!r} has no sequences in version {self.version}"
         counts = listed.get(split)
         if isinstance(counts, dict) and "listed" in counts:
@@ -435,15 +444,26 @@ def open_store(path: str | Path, version: str | None = None) -> DanceStore:
     return DanceStore(path, version)
 
 
+def open_split(
+    store: str | Path | DanceStore, version: str | None, split: str | None, scheme: str
+) -> DanceStore:
+    """The store opened (once), after checking that ``split`` names sequences: StoreError for
+    an unknown split or one with no sequences, with what its split file listed."""
+    opened = store if isinstance(store, DanceStore) else DanceStore(store, version)
+    if split is not None and not opened._split_members(split, scheme):
+        raise StoreError(opened.empty_split_reason(split, scheme), opened.path)
+    return opened
+
+
 def check_window_count(
     store: DanceStore, split: str | None, scheme: str, with_audio: bool, count: int
 ) -> None:
     """Loud, not empty (for the window datasets): a StoreError naming the reason when ``split``
     yields no windows, and a one-line warning on stderr when audio windows leave out sequences
     of the split that have no music."""
-    from dancedata.store.layout import warn_once
-
-    seq_ids = store.seq_ids(split, scheme)  # an unknown or empty split is an error there
+    seq_ids = store.seq_ids(split, scheme)  # an unknown split is an error there
+    if split is not None and not seq_ids:
+        raise StoreError(store.empty_split_reason(split, scheme), store.path)
     silent = [s for s in seq_ids if store.audio_frames(s) == 0] if with_audio else []
     where = f"split {split!r} of scheme {scheme!r}" if split else "the store"
     if count == 0:

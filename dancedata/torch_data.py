@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from dancedata.loader import DanceStore, MeasureWindow, check_window_count
+from dancedata.loader import DanceStore, MeasureWindow, check_window_count, open_split
 from dancedata.window_dataset import WindowSource
 
 
@@ -142,6 +142,7 @@ class MeasureDataset(_WindowDataset):
         fit: str = "resample",
     ) -> None:
         _torch()
+        store = open_split(store, version, split, scheme)  # an empty split: its own error
         self.source = WindowSource(
             store, split, scheme, motion, audio, version,
             kind="measures", n_measures=n_measures, hop_measures=hop_measures,
@@ -170,6 +171,7 @@ class SecondsDataset(_WindowDataset):
         fit: str = "resample",
     ) -> None:
         _torch()
+        store = open_split(store, version, split, scheme)  # an empty split: its own error
         self.source = WindowSource(
             store, split, scheme, motion, audio, version,
             kind="seconds", seconds=seconds, hop_seconds=hop_seconds,

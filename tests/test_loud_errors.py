@@ -10,7 +10,7 @@ import shutil
 import pytest
 
 import dancedata
-from dancedata.errors import StoreError
+from dancedata.errors import DancedataError, StoreError
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.pipeline.featurize import FeaturizeOptions, featurize
 from dancedata.pipeline.segment import SegmentOptions, segment
@@ -86,19 +86,28 @@ def test_an_unknown_split_name_is_an_error(full):
             call()
 
 
-def test_a_split_with_no_sequences_says_why(full):
+def test_a_split_with_no_sequences_says_why(full, capfd):
     store = dancedata.open_store(full)
     # the synthetic split files list no test sequence: a known split, empty in this store
-    with pytest.raises(StoreError, match=r"split 'test' of scheme 'crossmodal' has no sequences "
-                       r"in version v3 \(its split file lists 0"):  # fmt: skip
-        store.seq_ids(split="test")
-    with pytest.raises(StoreError, match="has no sequences"):
-        MeasureDataset(full, split="test")
+    reason = (
+        "split 'test' of scheme 'crossmodal' has no sequences in version v3 (its split file "
+        "lists 0, 0 of them on the ignore list, 0 in the store)"
+    )
+    capfd.readouterr()
+    assert store.seq_ids(split="test") == []  # a listing: empty, with one warning line
+    assert capfd.readouterr().err.strip() == f"warning: {full}: {reason}"
+    for dataset in (MeasureDataset, SecondsDataset):  # a dataset: an error
+        with pytest.raises(StoreError) as exc:
+            dataset(full, split="test")
+        assert str(exc.value) == f"{full}: {reason}"
 
 
 def test_a_split_too_short_for_any_window_says_why(full):
-    with pytest.raises(StoreError, match="no windows in split 'train'.*long enough for one window"):
+    too_long = r"no 3600(\.0)? s windows in split 'train'.*long enough"
+    with pytest.raises(DancedataError, match=too_long):
         SecondsDataset(full, split="train", seconds=3600.0, audio=None)
+    with pytest.raises(DancedataError, match="no 1000-measure windows in split 'train'"):
+        MeasureDataset(full, split="train", n_measures=1000, audio=None)
 
 
 # -- music -------------------------------------------------------------------------------------
