@@ -202,3 +202,21 @@ def test_checkout_on_s3(s3_url):
     assert layout.latest() == "v4" and layout.committed_versions()[-1] == "v4"
     assert [e["version"] for e in checkout_log(s3_url)] == ["v2"]
     assert validate_store(s3_url) == []
+
+
+def test_a_failed_first_ingest_leaves_no_store_on_s3(s3_url, raw, tmp_path):
+    """Issue 14, item 7, on object storage: no store.json is left at the new prefix."""
+    import s3fs
+
+    bad = tmp_path / "raw-bad"
+    shutil.copytree(raw, bad)
+    sorted((bad / "motions").glob("*.pkl"))[0].write_bytes(b"garbage")
+    url = f"s3://{BUCKET}/fresh"
+    proc = run_cli("ingest", "aist", str(bad), "--store", url, "-q", check=False)
+    assert proc.returncode == 1 and "unreadable pickle" in proc.stderr
+    fs = s3fs.S3FileSystem()
+    fs.invalidate_cache()
+    assert not fs.exists(f"{BUCKET}/fresh/store.json") and not fs.find(f"{BUCKET}/fresh")
+    # the store the fixture made is untouched by the same failure
+    proc = run_cli("ingest", "aist", str(bad), "--store", s3_url, "-q", check=False)
+    assert proc.returncode == 1 and StoreLayout(s3_url).latest() is not None
