@@ -37,7 +37,8 @@ StemsModel = Annotated[
 StemsWeights = Annotated[
     Path | None,
     typer.Option(
-        help="Folder with the OpenUnmix weight files (<DIR>/<model>/<file> or <DIR>/<file>); "
+        help="Folder with the OpenUnmix weight files (<DIR>/<model>/<file> or <DIR>/<file>), or "
+        "an openunmix model folder (separator.json + <target>.pth, its settings are read); "
         "default: the torch hub cache. Nothing is downloaded. Their sha256 go into the config.",
     ),
 ]

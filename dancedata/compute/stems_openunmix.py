@@ -17,12 +17,28 @@ file name (see :data:`MODELS`), looked up in this order:
 
 When a file is missing, :class:`~dancedata.errors.InputError` lists every missing file, its URL and
 the folders it may go in. The architecture (hidden size, layers, bins, channels) is read from the
-state dict, so any OpenUnmix-shaped weights load. The models run at 44.1 kHz (all published music
-models do): input is resampled to 44.1 kHz, mono input is duplicated to the model's channels,
-and each stem is averaged to mono and resampled back to the input rate and length.
+state dict, so any OpenUnmix-shaped weights load.
 
-Memory stays bounded on long tracks: the signal goes through the network in chunks of
-``chunk_seconds`` that overlap by ``overlap_seconds`` and are blended with linear cross-fades.
+An **OpenUnmix model folder** as ``openunmix`` writes and reads it (``separator.json`` with
+``sample_rate``, ``nfft``, ``nhop``, ``nb_channels``, next to ``<target>.pth`` or
+``<target>-<hash>.pth``) is recognised by its ``separator.json`` and read with its settings,
+whatever ``model`` says; without one, the published models' settings apply (44.1 kHz, n_fft
+from the weights, hop n_fft / 4).
+
+What the model sees (:func:`separate_channels`): the input's own channels at the model rate,
+as ``openunmix.utils.preprocess`` feeds them (mono duplicated, only the first two of more;
+another rate resampled with :data:`INPUT_RESAMPLER`). featurize passes the music file's own
+samples (:mod:`dancedata.io.audio_native`), not the feature-rate mono mix, so nothing above
+half the feature rate and no stereo image is lost before separation. Each stem is then the mean
+of its channels, resampled to the requested output rate.
+
+Whole tracks or chunks (:func:`separation_plan`): a track is separated in one pass, exactly as
+``openunmix`` separates a file, when the measured memory estimate (:func:`whole_track_mb`, about
+26 MB per second of stereo 44.1 kHz for umxhq) fits ``memory_mb``; otherwise in chunks that fit,
+each separated alone (its own LSTM context and Wiener filter) and blended by linear cross-fades
+over ``overlap_seconds`` (overlap-add, normalised by the summed weights). ``chunk_seconds``
+forces chunks of that length.
+
 ``umxhq`` (MUSDB18-HQ) is the default; ``umxl`` is larger and better, but its weights are licensed
 for non-commercial use only (CC BY-NC-SA 4.0).
 """
