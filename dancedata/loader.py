@@ -398,10 +398,60 @@ class DanceStore:
         audio: str | None = "fact_audio_35",
     ) -> MeasureWindows:
         """Fast random access to the measures of ``split`` as view windows (a data loader's
-        sampler): ``windows[i]`` gives (motion, audio) in a few microseconds."""
+        sampler): ``windows[i]`` gives (motion, audio) in a few microseconds. The table and
+        zarr lookups happen here, once; :class:`MeasureWindows` gets only arrays."""
         from dancedata.windows import MeasureWindows
 
-        return MeasureWindows(self, split, scheme, motion, audio)
+        for view in (motion, audio):
+            if view is not None and view not in VIEWS:
+                raise StoreError(f"unknown view {view!r}; known: {sorted(VIEWS)}")
+        rows = self.measure_rows(split, scheme)
+        seq_start: dict[str, int] = {}
+        audio_start: dict[str, int] = {}
+        audio_frames: dict[str, int] = {}
+        for seq_id in {r["seq_id"] for r in rows}:
+            seq = self.sequence(seq_id)
+            seq_start[seq_id] = int(seq["frame_start"])
+            n_audio = self.audio_frames(seq_id) if audio else 0
+            audio_frames[seq_id] = n_audio
+            if n_audio:
+                track = self._music_rows[seq["music_id"]]
+                audio_start[seq_id] = int(track["frame_start"]) + int(seq["audio_offset"])
+        if audio:  # measures not fully covered by audio are left out, as iter_measures does
+            rows = [r for r in rows if r["frame_stop"] <= audio_frames[r["seq_id"]]]
+        seq_ids = [r["seq_id"] for r in rows]
+        starts = np.array([r["frame_start"] for r in rows], dtype=np.int64)
+        motion_parts = self.view_parts(motion) if motion else None
+        # Audio views are narrow (≤ 35 floats per frame): assemble the whole view once.
+        audio_rows = None
+        if audio:
+            parts = self.view_parts(audio)
+            audio_rows = np.concatenate([p for p in parts if p is not None], axis=1)
+        audio_offsets = np.array([audio_start.get(s, 0) for s in seq_ids], dtype=np.int64)
+        return MeasureWindows(
+            seq_ids=seq_ids,
+            measure=np.array([r["measure"] for r in rows], dtype=np.int64),
+            length=np.array([r["frame_stop"] for r in rows], dtype=np.int64) - starts,
+            motion_start=np.array([seq_start[s] for s in seq_ids], dtype=np.int64) + starts,
+            audio_start=audio_offsets + starts,
+            motion_parts=motion_parts,
+            audio=audio_rows,
+        )
+
+    def view_parts(self, name: str) -> list[np.ndarray | None]:
+        """The arrays of view ``name`` over the whole store, each as (rows, width) float32 (the
+        cached whole arrays reshaped, copied only when not float32); None for FACT's six zero
+        columns. Motion parts are indexed by global motion frame, audio parts by music frame."""
+        self._require_view_arrays(name)
+        parts: list[np.ndarray | None] = []
+        for kind, array in VIEWS[name]:
+            if kind == "zeros6":
+                parts.append(None)
+                continue
+            values = self._full(f"{kind}/{array}")
+            values = values.reshape(values.shape[0], -1)
+            parts.append(values if values.dtype == np.float32 else values.astype(np.float32))
+        return parts
 
     def iter_measures(
         self,

@@ -25,9 +25,7 @@ class _ViewRows:
     """One view of one store, flattened to (frames, width) parts for fast slicing."""
 
     def __init__(self, store: DanceStore, view: str) -> None:
-        from dancedata.windows import MeasureWindows
-
-        self.parts = MeasureWindows._parts(store, view)
+        self.parts = store.view_parts(view)
         widths = [6 if p is None else p.shape[1] for p in self.parts]
         self.plan = column_plan(VIEWS[view], widths)
 

@@ -1,10 +1,11 @@
 """Fast random access to measure windows: the thing a training loop asks for most.
 
 :meth:`DanceStore.view` assembles a view per call with table and zarr lookups; fine for a few
-calls, too slow for a data loader. :class:`MeasureWindows` does those lookups once: it holds
-each window's global frame offsets as numpy arrays and the view's arrays flattened to 2-D (the
-loader's cached whole arrays, reshaped without copying), so one window costs a few slices and
-one concatenation.
+calls, too slow for a data loader. :meth:`DanceStore.measure_windows` does those lookups once
+and hands :class:`MeasureWindows` the results: each window's global frame offsets as numpy
+arrays and the view's arrays flattened to 2-D (the loader's cached whole arrays, reshaped
+without copying), so one window costs a few slices and one concatenation. This module only
+slices arrays; it never reads the store.
 
     windows = store.measure_windows(split="train")       # fact_motion_225 + fact_audio_35
     motion, audio = windows[i]                            # (frames, 225), (frames, 35) float32
@@ -14,76 +15,41 @@ one concatenation.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from dancedata.errors import StoreError
 
-if TYPE_CHECKING:
-    from dancedata.loader import DanceStore
-
 
 class MeasureWindows:
-    """Every measure of a split as (motion view, audio view) windows, by index."""
+    """Every measure of a split as (motion view, audio view) windows, by index.
+
+    Built from arrays, not from a store (:meth:`dancedata.loader.DanceStore.measure_windows`
+    does the table lookups and passes the results here), so this module knows nothing of the
+    reader. One entry per window in ``seq_ids``, ``measure``, ``length`` (frames),
+    ``motion_start`` and ``audio_start`` (global row offsets into the motion and audio arrays).
+    ``motion_parts`` are the motion view's arrays as (frames, width) float32, None for FACT's
+    six zero columns; ``audio`` is the whole audio view as one (frames, width) float32 array.
+    Either is None when the windows were opened without that view.
+    """
 
     def __init__(
         self,
-        store: DanceStore,
-        split: str | None = None,
-        scheme: str = "crossmodal",
-        motion: str | None = "fact_motion_225",
-        audio: str | None = "fact_audio_35",
+        seq_ids: list[str],
+        measure: np.ndarray,
+        length: np.ndarray,
+        motion_start: np.ndarray,
+        audio_start: np.ndarray,
+        motion_parts: list[np.ndarray | None] | None,
+        audio: np.ndarray | None,
     ) -> None:
-        from dancedata.loader import VIEWS
-
-        for view in (motion, audio):
-            if view is not None and view not in VIEWS:
-                raise StoreError(f"unknown view {view!r}; known: {sorted(VIEWS)}")
-        rows = store.measure_rows(split, scheme)
-        seq_start: dict[str, int] = {}
-        audio_start: dict[str, int] = {}
-        audio_frames: dict[str, int] = {}
-        for seq_id in {r["seq_id"] for r in rows}:
-            seq = store.sequence(seq_id)
-            seq_start[seq_id] = int(seq["frame_start"])
-            n_audio = store.audio_frames(seq_id) if audio else 0
-            audio_frames[seq_id] = n_audio
-            if n_audio:
-                track = store._music_rows[seq["music_id"]]
-                audio_start[seq_id] = int(track["frame_start"]) + int(seq["audio_offset"])
-        if audio:  # measures not fully covered by audio are left out, as iter_measures does
-            rows = [r for r in rows if r["frame_stop"] <= audio_frames[r["seq_id"]]]
-        self.seq_ids = [r["seq_id"] for r in rows]
-        self.measure = np.array([r["measure"] for r in rows], dtype=np.int64)
-        starts = np.array([r["frame_start"] for r in rows], dtype=np.int64)
-        self.length = np.array([r["frame_stop"] for r in rows], dtype=np.int64) - starts
-        self.motion_start = np.array([seq_start[s] for s in self.seq_ids], dtype=np.int64) + starts
-        self.audio_start = (
-            np.array([audio_start.get(s, 0) for s in self.seq_ids], dtype=np.int64) + starts
-        )
-        self._motion = self._parts(store, motion) if motion else None
-        # Audio views are narrow (≤ 35 floats per frame): assemble the whole view once.
-        self._audio = None
-        if audio:
-            parts = self._parts(store, audio)
-            self._audio = np.concatenate([p for p in parts if p is not None], axis=1)
-
-    @staticmethod
-    def _parts(store: DanceStore, view: str) -> list[np.ndarray | None]:
-        """The view's arrays as (frames, width) float32 (None for FACT's six zero columns)."""
-        from dancedata.loader import VIEWS
-
-        store._require_view_arrays(view)
-        parts: list[np.ndarray | None] = []
-        for kind, array in VIEWS[view]:
-            if kind == "zeros6":
-                parts.append(None)
-                continue
-            values = store._full(f"{kind}/{array}")
-            values = values.reshape(values.shape[0], -1)
-            parts.append(values if values.dtype == np.float32 else values.astype(np.float32))
-        return parts
+        self.seq_ids = seq_ids
+        self.measure = measure
+        self.length = length
+        self.motion_start = motion_start
+        self.audio_start = audio_start
+        self._motion = motion_parts
+        self._audio = audio
 
     def __len__(self) -> int:
         return len(self.seq_ids)
