@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 from dancedata.cli.apps import ingest_app
-from dancedata.cli.common import Json, OnError, OnErrorOpt, Quiet, Wait, report, setup
+from dancedata.cli.common import Json, OnError, OnErrorOpt, Quiet, Wait, Workers, report, setup
 
 
 @ingest_app.command("bvh")
@@ -15,8 +15,9 @@ def ingest_bvh_cmd(
     paths: Annotated[
         list[Path] | None,
         typer.Argument(
-            help="BVH files; each becomes one sequence named after its file stem. May be left "
-            "out when --manifest lists the files."
+            help="BVH files or folders (searched recursively for --glob); each file becomes "
+            "one sequence named after its file stem. May be left out when --manifest lists the "
+            "files."
         ),
     ] = None,
     store: Annotated[
@@ -71,6 +72,17 @@ def ingest_bvh_cmd(
         ),
     ] = False,
     up_axis: Annotated[str, typer.Option(help="Up axis recorded in the motion attrs.")] = "y",
+    glob: Annotated[
+        str, typer.Option(help="File-name pattern of the BVH files in folders given as PATHS.")
+    ] = "*.bvh",
+    frames: Annotated[
+        str,
+        typer.Option(
+            help="declared: refuse a MOTION block whose row count differs from 'Frames:'; "
+            "present: read every row (both counts go into the manifest)."
+        ),
+    ] = "declared",
+    workers: Workers = 1,
     on_error: OnErrorOpt = OnError.fail,
     wait: Wait = False,
     quiet: Quiet = False,
@@ -96,6 +108,9 @@ def ingest_bvh_cmd(
         append=append,
         on_error=on_error.value,
         wait_for_lock=wait,
+        glob=glob,
+        frames=frames,
+        workers=workers,
     )
     from dancedata.store.first_write import remove_store_if_left_empty
 

@@ -233,7 +233,7 @@ N_HEADER = MIXED.count("\n")  # data rows start on line N_HEADER + 1
         (MIXED, N_HEADER, "file ends after 0 of 2 frames"),
         (MIXED + ROW1 + "\n" + ROW2.replace("1 2 3", "1 2 0.0-7.5") + "\n", N_HEADER + 2,
          "glued"),
-        (MIXED + ROW1 + "\n" + ROW2 + "\n" + ROW2 + "\n", N_HEADER + 3, "more frame lines"),
+        (MIXED + ROW1 + "\n" + ROW2 + "\n" + ROW2 + "\n", N_HEADER + 3, "'Frames:' declares"),
         (MIXED + ROW1 + "\n" + ROW2.replace("1 2 3", "1 nan 3") + "\n", N_HEADER + 2,
          "'nan' is not a number"),
         (MIXED + ROW1 + "\n" + ROW2.replace("1 2 3", "1 1e999 3") + "\n", N_HEADER + 2,

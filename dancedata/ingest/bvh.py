@@ -17,6 +17,13 @@ the version is an *ingest* stage: featurize and segment run again on it. "Latest
 once this command holds the store lock (see :mod:`dancedata.ingest.locked`): an append queued
 behind another writer adds to that writer's version.
 
+Collections: a folder among the paths stands for every file below it matching ``glob``
+(:func:`~dancedata.ingest.bvh_inputs.expand_folders`). Files are read and processed as resumable
+units of :data:`READ_BATCH_FILES` files (:class:`~dancedata.exec.reads.ResumableReads`, as
+``ingest aist`` reads its pickles), on ``workers`` processes; a killed run leaves its finished
+units in the version's build area and the next run with the same inputs and settings reads only
+the others. The stored bytes do not depend on ``workers``.
+
 Arrays and attrs are described in docs/STORE.md ("BVH stores").
 """
 
@@ -28,8 +35,10 @@ from typing import Any
 
 from dancedata._version import __version__
 from dancedata.errors import DancedataError, InputError
+from dancedata.exec.executors import make_executor
+from dancedata.exec.reads import ResumableReads
 from dancedata.ingest.bvh_arrays import SOURCE, BvhArrayStream
-from dancedata.ingest.bvh_inputs import BvhInput, resolve_inputs
+from dancedata.ingest.bvh_inputs import DEFAULT_GLOB, BvhInput, resolve_inputs
 from dancedata.ingest.bvh_motion import BvhMotion, BvhSettings, process_bvh
 from dancedata.ingest.bvh_units import parse_units
 from dancedata.ingest.locked import already_ingested
@@ -47,6 +56,9 @@ from dancedata.store.writer import VersionWriter, base_fingerprint, hold_store_l
 __all__ = ["COMMAND", "BvhIngestOptions", "ingest_bvh"]
 
 COMMAND = "ingest bvh"
+# Files per resumable read unit: a killed run loses at most this many files' work.
+READ_BATCH_FILES = 8
+_FRAMES_MODES = ("declared", "present")
 
 
 @dataclass
@@ -64,6 +76,11 @@ class BvhIngestOptions:
         append: add to the latest version's sequences instead of replacing them.
         skeleton_atol_m: tolerance on offsets when comparing skeletons, metres.
         on_error: "fail" or "skip" (skip a bad file and record why in the manifest).
+        frames: "declared" (a MOTION block with another row count than ``Frames:`` is refused)
+            or "present" (every row is a frame; each file's declared and read counts go into
+            the manifest's counts).
+        glob: file-name pattern for folders given as paths (searched recursively).
+        workers: processes reading files (not fingerprinted: the bytes do not depend on it).
     """
 
     units: str = "cm"
@@ -80,6 +97,9 @@ class BvhIngestOptions:
     skeleton_atol_m: float = 1e-4
     on_error: str = "fail"
     wait_for_lock: bool = False
+    frames: str = "declared"
+    glob: str = DEFAULT_GLOB
+    workers: int = 1
 
     def settings(self) -> BvhSettings:
         return BvhSettings(
@@ -88,6 +108,7 @@ class BvhIngestOptions:
             smooth_cutoff_hz=self.smooth_cutoff_hz,
             smooth_order=self.smooth_order,
             check_size=self.check_size,
+            frames=self.frames,
         )
 
     def check(self) -> None:
@@ -102,6 +123,10 @@ class BvhIngestOptions:
             raise InputError(f"--smooth-order must be at least 1, not {self.smooth_order}")
         if self.up_axis not in ("x", "y", "z", "-x", "-y", "-z"):
             raise InputError(f"--up-axis must be x, y or z (optionally with -), not {self.up_axis}")
+        if self.frames not in _FRAMES_MODES:
+            raise InputError(f"--frames must be declared or present, not {self.frames!r}")
+        if self.workers < 1:
+            raise InputError(f"--workers must be at least 1, not {self.workers}")
         if self.on_error not in ("fail", "skip"):
             raise InputError(f"on_error must be 'fail' or 'skip', not {self.on_error!r}")
 
@@ -239,6 +264,7 @@ class _Done:
     source_frames: int
     source_frame_time_s: float
     size_m: float
+    declared_frames: int | None
 
     @classmethod
     def of(cls, item: BvhInput, motion: BvhMotion, frame_start: int) -> _Done:
@@ -251,6 +277,7 @@ class _Done:
             motion.source_frames,
             motion.source_frame_time_s,
             motion.size_m,
+            motion.declared_frames,
         )
 
 
@@ -364,19 +391,33 @@ def _check_new_ids(parent: _Parent, inputs: list[BvhInput]) -> None:
             )
 
 
+def _read_file(item: tuple[str, BvhSettings]) -> BvhMotion:
+    """One read-unit item (top level: process pools pickle it): a file read and processed."""
+    path, settings = item
+    return process_bvh(Path(path), settings)
+
+
 def _ingest_files(
-    stream: BvhArrayStream, inputs: list[BvhInput], settings: BvhSettings, run: _Run
+    stream: BvhArrayStream,
+    inputs: list[BvhInput],
+    settings: BvhSettings,
+    run: _Run,
+    reads: ResumableReads,
 ) -> list[_Done]:
-    """Process and stream every file; bad ones fail the run or are skipped."""
+    """Stream every file's processed arrays in input order; bad ones fail the run or are
+    skipped."""
     done: list[_Done] = []
-    for item in progress(inputs, "ingest BVH", unit="file"):
+    # reads first: it runs the read units (their own bar) before yielding anything
+    for loaded, item in zip(reads, progress(inputs, "ingest BVH", unit="file"), strict=True):
         try:
-            motion = process_bvh(item.path, settings)
+            motion = loaded.get()
             stream.check(motion, item.path)
         except DancedataError as exc:
             run.fail_or_skip(exc, item.path)
             continue
-        start = stream.add(motion, item.seq_id, settings.units.name, settings.units.metres)
+        start = stream.add(
+            motion, item.seq_id, settings.units.name, settings.units.metres, item.path
+        )
         done.append(_Done.of(item, motion, start))
     return done
 
@@ -393,6 +434,7 @@ def ingest_bvh(
         bpm=options.bpm,
         genre=options.genre,
         manifest=options.manifest,
+        glob=options.glob,
     )
     run = _Run(on_error=options.on_error, options=options)
     inputs, keys = _checked_inputs(run, inputs)
@@ -428,25 +470,41 @@ def _ingest_locked(
         return ingested
     inputs, tracks = _tracks(run, inputs)
 
-    with VersionWriter(
-        store,
-        command=COMMAND,
-        config=config,
-        fingerprint=fp,
-        inputs=list(run.described.values()),
-        parent=layout.latest() if layout.exists() else None,
-        carry_over=False,
-        wait_for_lock=options.wait_for_lock,
-        stage="ingest",
-        lock=lock,
-        based_on=parent.reader.version if parent else None,  # (read under this same lock)
-    ) as version:
+    with (
+        make_executor(options.workers) as executor,
+        VersionWriter(
+            store,
+            command=COMMAND,
+            config=config,
+            fingerprint=fp,
+            inputs=list(run.described.values()),
+            parent=layout.latest() if layout.exists() else None,
+            carry_over=False,
+            wait_for_lock=options.wait_for_lock,
+            stage="ingest",
+            resumable=True,
+            lock=lock,
+            based_on=parent.reader.version if parent else None,  # (read under this same lock)
+        ) as version,
+    ):
+        # resume: keep the read units a killed run finished, rebuild every output.
+        version.reset_outputs()
+        version.mark_prepared()
+        reads = ResumableReads(
+            version.build_area(),
+            "bvh",
+            [(str(item.path), settings) for item in inputs],
+            _read_file,
+            batch_size=READ_BATCH_FILES,
+            executor=executor,
+            desc="read BVH files",
+        )
         stream = BvhArrayStream(version, options.up_axis, options.skeleton_atol_m)
         if parent is not None:
             stream.copy_parent(
                 parent.reader, max((r["frame_stop"] for r in parent.rows), default=0)
             )
-        done = _ingest_files(stream, inputs, settings, run)
+        done = _ingest_files(stream, inputs, settings, run, reads)
         stream.close()
         if not done:
             raise InputError("every BVH file was skipped; nothing to ingest")
@@ -470,8 +528,14 @@ def _ingest_locked(
                     "frames": d.n_frames,
                     "rig_size_m": round(d.size_m, 4),
                 }
+                | (
+                    {"declared_frames": d.declared_frames}
+                    if d.declared_frames != d.source_frames
+                    else {}
+                )
                 for d in done
             },
+            **reads.counts(),
         }
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts, skipped=version.skipped)

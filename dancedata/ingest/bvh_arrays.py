@@ -52,6 +52,7 @@ class BvhArrayStream:
         self.fps: float | None = None
         self.attrs: dict[str, Any] = {}
         self.frames = 0
+        self.skeleton_from = ""  # the file (or version) the store's skeleton was taken from
         self._writers: dict[str, FrameArrayWriter] = {}
 
     # -- set-up ------------------------------------------------------------------------------
@@ -74,6 +75,7 @@ class BvhArrayStream:
         self.attrs = reader.group_attrs("motion")
         self.skeleton = skeleton_from_attrs(self.attrs["skeleton"])
         self.fps = float(self.attrs["fps"])
+        self.skeleton_from = f"version {reader.version} ({self.attrs['skeleton'].get('name')})"
         self._open(self.skeleton, reader.has_array("motion/local_translations"))
         arrays = {name: reader.array(f"motion/{name}") for name in self._writers}
         for start in range(0, n_frames, CHUNK_FRAMES):
@@ -89,8 +91,8 @@ class BvhArrayStream:
             problem = skeleton_mismatch(self.skeleton, motion.clip.skeleton, self.atol_m)
             if problem is not None:
                 raise InputError(
-                    f"different skeleton: {problem}; a store holds one skeleton, so ingest "
-                    "this file into another store",
+                    f"different skeleton from {self.skeleton_from}: {problem}; a store holds "
+                    "one skeleton, so ingest this file into another store",
                     path,
                 )
         if self.fps is not None and abs(motion.fps - self.fps) > _FPS_RTOL * self.fps:
@@ -100,10 +102,13 @@ class BvhArrayStream:
                 path,
             )
 
-    def add(self, motion: BvhMotion, seq_id: str, units_name: str, metres: float) -> int:
+    def add(
+        self, motion: BvhMotion, seq_id: str, units_name: str, metres: float, path: Any = None
+    ) -> int:
         """Append a checked file's arrays; returns its first frame in the store."""
         if self.skeleton is None:
             self.skeleton, self.fps = motion.clip.skeleton, motion.fps
+            self.skeleton_from = str(path if path is not None else seq_id)
             self.attrs = {
                 "fps": self.fps,
                 "up_axis": self.up_axis,

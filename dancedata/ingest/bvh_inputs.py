@@ -3,7 +3,8 @@
 Sources, later ones overriding earlier ones per file:
 
 * command line: ``PATH...`` with ``--bpm B`` and ``--genre G`` for every file, ``--music F``
-  for a single file;
+  for a single file. A PATH that is a folder stands for every file below it (recursively) whose
+  name matches ``--glob`` (default ``*.bvh``), in sorted path order;
 * ``--manifest CSV``: a header row, then one row per BVH file. Columns: ``bvh`` (required; the
   file, relative to the CSV's folder unless absolute), ``music`` (audio file, same rule),
   ``bpm``, ``genre``, ``split`` (train / val / test, stored under the ``custom`` scheme). Empty
@@ -22,11 +23,19 @@ from pathlib import Path
 
 from dancedata.errors import InputError
 
-__all__ = ["MANIFEST_COLUMNS", "MAX_MANIFEST_BYTES", "BvhInput", "resolve_inputs"]
+__all__ = [
+    "DEFAULT_GLOB",
+    "MANIFEST_COLUMNS",
+    "MAX_MANIFEST_BYTES",
+    "BvhInput",
+    "expand_folders",
+    "resolve_inputs",
+]
 
 MANIFEST_COLUMNS = ("bvh", "music", "bpm", "genre", "split")
 MAX_MANIFEST_BYTES = 64 * 2**20
 _SPLITS = ("train", "val", "test")
+DEFAULT_GLOB = "*.bvh"
 
 
 @dataclass(frozen=True)
@@ -126,6 +135,21 @@ def _match(path: Path, rows: list[BvhInput]) -> BvhInput | None:
     return named[0] if len(named) == 1 else None
 
 
+def expand_folders(paths: list[Path], glob: str = DEFAULT_GLOB) -> list[Path]:
+    """Each folder in ``paths`` replaced by the files below it (any depth) matching ``glob``,
+    sorted by path; files stay as given, in order. A folder with no match is an error."""
+    found: list[Path] = []
+    for path in paths:
+        if not path.is_dir():
+            found.append(path)
+            continue
+        files = sorted(p for p in path.rglob(glob) if p.is_file())
+        if not files:
+            raise InputError(f"no file matching {glob!r} in this folder or below it", path)
+        found.extend(files)
+    return found
+
+
 def resolve_inputs(
     paths: list[Path],
     *,
@@ -133,9 +157,11 @@ def resolve_inputs(
     bpm: float | None = None,
     genre: str | None = None,
     manifest: Path | None = None,
+    glob: str = DEFAULT_GLOB,
 ) -> list[BvhInput]:
     """The files to ingest with their pairing (see the module docstring)."""
     bpm = _bpm(bpm, "--bpm")
+    paths = expand_folders(paths, glob)
     if music is not None and manifest is not None:
         raise InputError("--music pairs one file; with --manifest give music in the CSV")
     rows = read_manifest(manifest) if manifest is not None else []

@@ -33,6 +33,7 @@ from dancedata.ingest.bvh_units import PLAUSIBLE_SIZE_M, LengthUnit, check_rig_s
 from dancedata.io.bvh import (
     BvhClip,
     clip_from_rotations,
+    declared_frames,
     euler_degrees,
     euler_radians,
     local_rotmats,
@@ -57,6 +58,8 @@ class BvhSettings:
         smooth_cutoff_hz: Butterworth cut-off in Hz, or None for no smoothing.
         smooth_order: Butterworth order (the zero-phase filter doubles it).
         check_size: fail when the rig's size is implausible (see bvh_units).
+        frames: "declared" (a MOTION block holding another number of rows than ``Frames:``
+            declares is an error) or "present" (every row the block holds is a frame).
     """
 
     units: LengthUnit
@@ -64,6 +67,7 @@ class BvhSettings:
     smooth_cutoff_hz: float | None = None
     smooth_order: int = 2
     check_size: bool = True
+    frames: str = "declared"
 
     def config(self) -> dict[str, Any]:
         return {
@@ -83,6 +87,7 @@ class BvhSettings:
                 }
             ),
             "size_check_m": list(PLAUSIBLE_SIZE_M) if self.check_size else None,
+            "frames": self.frames,
         }
 
 
@@ -98,6 +103,8 @@ class BvhMotion:
         size_m: the rig's size (see :func:`~dancedata.ingest.bvh_units.rig_size`).
         euler, axis_angle: (F, J, 3); trans: (F, 3); positions: (F, J, 3);
         local_translations: (F, J, 3) or None (see the module docstring).
+        declared_frames: the count the file's ``Frames:`` line declares (``source_frames`` is
+            the rows read: they differ only with ``frames="present"``).
     """
 
     clip: BvhClip
@@ -111,6 +118,7 @@ class BvhMotion:
     trans: np.ndarray
     positions: np.ndarray
     local_translations: np.ndarray | None
+    declared_frames: int | None = None
 
     @property
     def n_frames(self) -> int:
@@ -141,7 +149,8 @@ def smooth_clip(clip: BvhClip, cutoff_hz: float, order: int) -> BvhClip:
 def process_bvh(path: str | Path, settings: BvhSettings) -> BvhMotion:
     """Read and process one BVH file; InputError names the file on any problem."""
     path = Path(path)
-    raw = read_bvh(path)
+    present = settings.frames == "present"
+    raw = read_bvh(path, rows_present=present)
     if raw.n_frames == 0:
         raise InputError("the file holds no frames", path)
     clip = scale_clip(raw, settings.units.metres)
@@ -176,4 +185,5 @@ def process_bvh(path: str | Path, settings: BvhSettings) -> BvhMotion:
         trans=root_translation(clip),
         positions=positions,
         local_translations=local_translations(clip) if has_joint_translations(clip) else None,
+        declared_frames=declared_frames(path) if present else raw.n_frames,
     )

@@ -4,14 +4,19 @@ BVH has no unit field. Files in the wild use centimetres (Mixamo, Perception Neu
 exporters), inches, metres or odd scales (the CMU "cgspeed" conversion uses 1/0.45 inch:
 0.056444 m per unit). ``--units`` names the unit, or gives metres per file unit as a number.
 
-The check: a rig's size is the largest side of the joints' bounding box, maximised over frames
-(about the body height for a standing or T-posed human, the arm span when that is larger). A
-size outside 0.3-3 m after conversion almost always means a wrong ``--units``.
+The check: a rig's size is the largest side of the body's bounding box *within a frame*,
+maximised over frames (about the body height for a standing or T-posed human, the arm span when
+that is larger). Measured per frame, so a dancer travelling across the floor does not count the
+distance travelled; and joints that never move while others do (a static reference root at the
+origin, as some exporters write above the hips) are left out, so a body far from the origin is
+not measured together with the origin. A size outside 0.3-3 m after conversion almost always
+means a wrong ``--units``; the error suggests only units under which the size passes.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,7 +24,16 @@ import numpy as np
 
 from dancedata.errors import InputError
 
-__all__ = ["PLAUSIBLE_SIZE_M", "UNITS", "LengthUnit", "check_rig_size", "parse_units", "rig_size"]
+__all__ = [
+    "PLAUSIBLE_SIZE_M",
+    "UNITS",
+    "LengthUnit",
+    "check_rig_size",
+    "parse_units",
+    "passing_units",
+    "rig_size",
+    "static_joints",
+]
 
 UNITS: dict[str, float] = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048}
 PLAUSIBLE_SIZE_M = (0.3, 3.0)
@@ -51,26 +65,48 @@ def parse_units(text: str) -> LengthUnit:
     return LengthUnit(repr(value), value)
 
 
+def static_joints(positions: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
+    """(J,) bool: joints whose world position never moves over the frames while some other joint
+    does (a static reference root); all False for one frame or a motionless clip."""
+    p = np.asarray(positions, dtype=np.float64)
+    if p.ndim != 3 or p.shape[0] < 2 or not np.isfinite(p).any():
+        return np.zeros(p.shape[1] if p.ndim == 3 else 0, dtype=bool)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        travel = np.nanmax(np.nanmax(p, axis=0) - np.nanmin(p, axis=0), axis=1)  # (J,)
+        scale = float(np.nanmax(np.abs(p)))
+    moves = travel > rtol * max(scale, 1e-300)
+    if not moves.any():
+        return np.zeros(p.shape[1], dtype=bool)
+    return ~moves & np.isfinite(travel)
+
+
 def rig_size(positions: np.ndarray) -> float:
-    """Largest side of the joints' bounding box over all frames, in the positions' units.
-    Frames or joints holding NaN are ignored; 0.0 when nothing is finite."""
+    """Body size in the positions' units: the largest side of the bounding box of the joints
+    within one frame, maximised over frames, leaving out :func:`static_joints`. Frames or
+    joints holding NaN are ignored; 0.0 when nothing is finite."""
     p = np.asarray(positions, dtype=np.float64)
     if p.size == 0:
         return 0.0
-    with np.errstate(invalid="ignore"):
+    if p.ndim == 3:
+        p = p[:, ~static_joints(p)]
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
         side = np.nanmax(p, axis=1) - np.nanmin(p, axis=1) if np.isfinite(p).any() else None
     if side is None or not np.isfinite(side).any():
         return 0.0
     return float(np.nanmax(side))
 
 
-def _suggestion(size_in_file_units: float) -> str:
-    """The common unit giving a size nearest a typical human height (on a log scale)."""
+def passing_units(size_in_file_units: float) -> list[str]:
+    """Named units under which the size lies in :data:`PLAUSIBLE_SIZE_M`, nearest a typical
+    human height (1.7 m, on a log scale) first."""
+    low, high = PLAUSIBLE_SIZE_M
     if not size_in_file_units > 0:
-        return "m"
-    return min(
-        ("m", "cm", "mm", "in", "ft"),
-        key=lambda u: abs(math.log(size_in_file_units * UNITS[u] / _TYPICAL_SIZE_M)),
+        return []
+    fits = [u for u in UNITS if low <= size_in_file_units * UNITS[u] <= high]
+    return sorted(
+        fits, key=lambda u: abs(math.log(size_in_file_units * UNITS[u] / _TYPICAL_SIZE_M))
     )
 
 
@@ -80,11 +116,21 @@ def check_rig_size(size_m: float, unit: LengthUnit, path: str | Path) -> None:
     if low <= size_m <= high:
         return
     in_file = size_m / unit.metres
-    guess = _suggestion(in_file)
+    fits = [u for u in passing_units(in_file) if u != unit.name]
+    if fits:
+        hint = "pass the file's unit: " + ", ".join(
+            f"--units {u} ({in_file * UNITS[u]:.3g} m)" for u in fits
+        )
+        hint += ", or metres per unit as a number"
+    elif in_file > 0:
+        hint = (
+            f"no named unit fits; pass metres per unit as a number (--units "
+            f"{_TYPICAL_SIZE_M / in_file:.3g} makes it {_TYPICAL_SIZE_M:g} m)"
+        )
+    else:
+        hint = "the joints do not span any length (every joint at one point)"
     raise InputError(
-        f"the rig measures {in_file:.4g} file units = {size_m:.3g} m with --units {unit.name}, "
-        f"outside a plausible {low:g}-{high:g} m: pass the file's unit, e.g. --units {guess} "
-        f"({in_file * UNITS[guess]:.3g} m), or metres per unit as a number (CMU cgspeed: "
-        "0.056444); --no-size-check skips this check",
+        f"the body measures {in_file:.4g} file units = {size_m:.3g} m with --units {unit.name}, "
+        f"outside a plausible {low:g}-{high:g} m: {hint}; --no-size-check skips this check",
         path,
     )

@@ -71,6 +71,7 @@ __all__ = [
     "BvhSkeleton",
     "clip_from_arrays",
     "clip_from_rotations",
+    "declared_frames",
     "euler_degrees",
     "euler_radians",
     "format_bvh",
@@ -309,8 +310,11 @@ class _Head:
     data_line: int
 
 
-def read_bvh(path: str | Path) -> BvhClip:
+def read_bvh(path: str | Path, *, rows_present: bool = False) -> BvhClip:
     """Read a BVH file. Raises InputError (with the line number) on malformed input.
+
+    ``rows_present``: keep every frame row the MOTION block holds, however many ``Frames:``
+    declares (default: a count other than the declared one is an error naming both counts).
 
     The head is read in growing prefixes (see :mod:`dancedata.io.bvh_head`), so a file that is
     not BVH fails having read little of it; the frame rows are then read in one piece. The
@@ -322,18 +326,31 @@ def read_bvh(path: str | Path) -> BvhClip:
                 handle, lambda data, at_eof: _file_head(data, at_eof, path)
             )
             if not handle.seekable():  # a pipe: the head is fine, parse the whole stream
-                return parse_bvh(bytes(prefix) + handle.read(), path=path)
+                return parse_bvh(
+                    bytes(prefix) + handle.read(), path=path, rows_present=rows_present
+                )
             handle.seek(head.data_start)
             del prefix
             block = handle.read()
             if mac and b"\n" in block:  # not CR-only after all: parse it as parse_bvh would
                 handle.seek(0)
-                return parse_bvh(handle.read(), path=path)
+                return parse_bvh(handle.read(), path=path, rows_present=rows_present)
     except OSError as exc:
         raise InputError(f"cannot read BVH file: {exc.strerror or exc}", path) from exc
     if mac:
         block = block.replace(b"\r", b"\n")
-    return _clip(head, block, path)
+    return _clip(head, block, path, rows_present)
+
+
+def declared_frames(path: str | Path) -> int:
+    """The frame count the file's ``Frames:`` line declares (reads only the head)."""
+    path = Path(path)
+    try:
+        with path.open("rb") as handle:
+            _, (head, _) = read_head(handle, lambda data, at_eof: _file_head(data, at_eof, path))
+    except OSError as exc:
+        raise InputError(f"cannot read BVH file: {exc.strerror or exc}", path) from exc
+    return head.n_frames
 
 
 def _file_head(data: bytearray, at_eof: bool, path: Path) -> tuple[_Head, bool]:
@@ -345,21 +362,25 @@ def _file_head(data: bytearray, at_eof: bool, path: Path) -> tuple[_Head, bool]:
     return _parse_head(HeadBytes(data, at_eof, path), path), mac
 
 
-def parse_bvh(data: bytes | str, path: str | Path | None = None) -> BvhClip:
-    """Parse BVH content (bytes or text); ``path`` is only used in error messages."""
+def parse_bvh(
+    data: bytes | str, path: str | Path | None = None, *, rows_present: bool = False
+) -> BvhClip:
+    """Parse BVH content (bytes or text); ``path`` is only used in error messages;
+    ``rows_present`` as for :func:`read_bvh`."""
     if isinstance(data, str):
         data = data.encode("utf-8")
     data = bytes(data)
     if b"\n" not in data and b"\r" in data:  # classic Mac line endings
         data = data.replace(b"\r", b"\n")
     head = _parse_head(HeadBytes(data, True, path), path)
-    return _clip(head, data[head.data_start :], path)
+    return _clip(head, data[head.data_start :], path, rows_present)
 
 
-def _clip(head: _Head, block: bytes, path: str | Path | None) -> BvhClip:
-    values = _parse_motion_values(
-        block, head.skeleton.n_channels, head.n_frames, head.data_line, path
-    )
+def _clip(
+    head: _Head, block: bytes, path: str | Path | None, rows_present: bool = False
+) -> BvhClip:
+    n_frames = None if rows_present else head.n_frames
+    values = _parse_motion_values(block, head.skeleton.n_channels, n_frames, head.data_line, path)
     if head.column_order is not None:
         values = values[:, head.column_order]
     return BvhClip(skeleton=head.skeleton, frame_time_s=head.frame_time_s, values=values)
@@ -707,16 +728,17 @@ def _frame_time(token: str, line: int, path: str | Path | None) -> float:
 
 
 def _parse_motion_values(
-    block: bytes, n_channels: int, n_frames: int, first_line: int, path: str | Path | None
+    block: bytes, n_channels: int, n_frames: int | None, first_line: int, path: str | Path | None
 ) -> np.ndarray:
-    """Frame rows → (n_frames, n_channels) float64; fast path first, strict path on doubt."""
+    """Frame rows → (n_frames, n_channels) float64; fast path first, strict path on doubt.
+    ``n_frames`` None: as many rows as the block holds."""
     values = _parse_motion_fast(block, n_channels, n_frames)
     if values is not None:
         return values
     return _parse_motion_strict(block, n_channels, n_frames, first_line, path)
 
 
-def _parse_motion_fast(block: bytes, n_channels: int, n_frames: int) -> np.ndarray | None:
+def _parse_motion_fast(block: bytes, n_channels: int, n_frames: int | None) -> np.ndarray | None:
     """pyarrow CSV on whitespace-normalised rows. Returns None whenever the result is not
     certainly right (odd characters, unequal rows, wrong frame count, non-finite values), and
     at once when the first row is far longer than a row of ``n_channels`` numbers can be
@@ -738,11 +760,13 @@ def _parse_motion_fast(block: bytes, n_channels: int, n_frames: int) -> np.ndarr
         text = text.replace(b" \n", b"\n")
     text = text.strip(b" \n")
     if not text:
-        return np.zeros((0, n_channels)) if n_frames == 0 else None
+        return np.zeros((0, n_channels)) if not n_frames else None
     if n_frames == 0:
         return None
     lines = text.count(b"\n") + 1  # rows, plus blank lines if any
-    if lines < n_frames or (lines > n_frames and b"\n\n" not in text):
+    if n_frames is None:
+        pass  # any count of rows
+    elif lines < n_frames or (lines > n_frames and b"\n\n" not in text):
         return None  # the frame count is wrong: the strict path names the line
 
     import pyarrow as pa
@@ -764,6 +788,8 @@ def _parse_motion_fast(block: bytes, n_channels: int, n_frames: int) -> np.ndarr
         )
     except (pa.ArrowInvalid, pa.ArrowException):
         return None
+    if n_frames is None:
+        n_frames = table.num_rows
     if table.num_rows != n_frames or table.num_columns != n_channels:
         return None
     if any(column.null_count for column in table.columns):
@@ -780,7 +806,7 @@ def _parse_motion_fast(block: bytes, n_channels: int, n_frames: int) -> np.ndarr
 
 
 def _parse_motion_strict(
-    block: bytes, n_channels: int, n_frames: int, first_line: int, path: str | Path | None
+    block: bytes, n_channels: int, n_frames: int | None, first_line: int, path: str | Path | None
 ) -> np.ndarray:
     """Line-by-line parse that names the first offending line. Reads at most
     ``n_channels + 1`` values of a line, so a file whose rows are all on one line fails at
@@ -796,8 +822,11 @@ def _parse_motion_strict(
         eol = size if eol < 0 else eol
         last_line = line
         if n_rows == n_frames:
+            present = n_rows + _count_rows(block, first.start())
             raise InputError(
-                f"line {line}: more frame lines than 'Frames: {n_frames}' declares", path
+                f"line {line}: the MOTION block holds {present} frame rows, 'Frames:' declares "
+                f"{n_frames}; --frames present reads all {present} rows",
+                path,
             )
         row = []
         for match in _VALUE.finditer(block, first.start(), eol):
@@ -818,6 +847,8 @@ def _parse_motion_strict(
         values.extend(row)
         n_rows += 1
         pos = eol
+    if n_frames is None:
+        n_frames = n_rows
     if n_rows < n_frames:
         raise InputError(
             f"line {last_line}: file ends after {n_rows} of {n_frames} "
@@ -825,6 +856,11 @@ def _parse_motion_strict(
             path,
         )
     return np.frombuffer(values, dtype=np.float64).reshape(n_frames, n_channels).copy()
+
+
+def _count_rows(block: bytes, start: int) -> int:
+    """Lines holding anything but white space in ``block[start:]``."""
+    return sum(1 for line in block[start:].split(b"\n") if line.strip())
 
 
 def _count_values(block: bytes, start: int, stop: int) -> str:

@@ -60,8 +60,13 @@ def skeleton_from_attrs(attrs: dict[str, Any]) -> BvhSkeleton:
 
 
 def skeleton_mismatch(expected: BvhSkeleton, found: BvhSkeleton, atol_m: float) -> str | None:
-    """None when the skeletons agree (names, parents, channels, End Site counts exactly,
-    offsets and End Sites within ``atol_m`` metres), else the first difference in words."""
+    """None when the skeletons agree, else the first difference in words.
+
+    Agree means: names, parents, channel lists and End Site counts exactly; End Sites within
+    ``atol_m`` metres; and each OFFSET within ``atol_m`` on the components the joint's channels
+    leave fixed. A position channel overwrites its OFFSET component in every frame, so that
+    component says nothing about the rig (files of one rig with position channels on every
+    joint, as in the Bandai-Namco set, write each take's first pose there)."""
     if expected.n_joints != found.n_joints:
         return f"{found.n_joints} joints, the store's skeleton has {expected.n_joints}"
     for j in range(expected.n_joints):
@@ -75,9 +80,15 @@ def skeleton_mismatch(expected: BvhSkeleton, found: BvhSkeleton, atol_m: float) 
                 f"joint {name!r} has channels {' '.join(found.channels[j])}, the store's "
                 f"{' '.join(expected.channels[j])}"
             )
-        diff = float(np.abs(found.offsets[j] - expected.offsets[j]).max())
-        if diff > atol_m:
-            return f"joint {name!r} OFFSET differs by {diff * 100:.3g} cm"
+        fixed = expected._position_columns[j] < 0  # components no position channel overwrites
+        if fixed.any():
+            diff = float(np.abs(found.offsets[j] - expected.offsets[j])[fixed].max())
+            if diff > atol_m:
+                axes = "".join(a for a, f in zip("XYZ", fixed, strict=True) if f)
+                return (
+                    f"joint {name!r} OFFSET differs by {diff * 100:.3g} cm on its fixed "
+                    f"component(s) {axes} (no position channel overwrites them)"
+                )
         ends_a, ends_b = expected.end_sites[j], found.end_sites[j]
         if ends_a.shape != ends_b.shape:
             return f"joint {name!r} has {len(ends_b)} End Sites, the store's {len(ends_a)}"
