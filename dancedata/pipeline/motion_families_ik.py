@@ -27,17 +27,19 @@ other representations (rotmat, euler, quat, rot6d) of the solved rotations.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from dancedata.compute.ik import IK_METHOD, fk_residual, rest_skeleton, solve_rotations
 from dancedata.compute.rotations import rotmat_to_axis_angle
 from dancedata.errors import InputError
-from dancedata.pipeline.audio_families import ArraySpec
-
-if TYPE_CHECKING:
-    from dancedata.pipeline.motion_families import MotionBatch, MotionSettings
+from dancedata.pipeline.motion_family_base import (
+    ArraySpec,
+    MotionBatch,
+    MotionFamily,
+    MotionSettings,
+)
 
 __all__ = ["RotationsFromPositionsFamily", "solve_sequence"]
 
@@ -98,7 +100,7 @@ def solve_sequence(
     }
 
 
-class RotationsFromPositionsFamily:
+class RotationsFromPositionsFamily(MotionFamily):
     """Joint rotations and root translation from ``motion/positions`` (module docstring)."""
 
     name = "rotations_from_positions"

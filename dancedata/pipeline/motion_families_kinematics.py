@@ -1,9 +1,9 @@
 """Motion feature families computed on request: kinematics of joint positions, angular velocity
 of joint rotations, and the geometric (Müller) features of SMPL-24 poses.
 
-Each class implements the :class:`~dancedata.pipeline.motion_families.MotionFamily` interface
-(``name``, ``requires``, ``arrays``, ``compute``, ``config``) without subclassing it, so that
-``motion_families`` can register them without an import cycle.
+Each class subclasses :class:`~dancedata.pipeline.motion_family_base.MotionFamily` (``name``,
+``requires``, ``arrays``, ``compute``, ``config``); the registry in ``motion_families`` imports
+them, never the other way round.
 
 Every array has one row per frame, like every motion array (featurize writes frame rows):
 
@@ -26,7 +26,7 @@ Families and the base arrays they read (a store lacking one reports the family a
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -39,10 +39,12 @@ from dancedata.compute.motion_features import (
 )
 from dancedata.compute.rotations import axis_angle_to_quat
 from dancedata.errors import InputError
-from dancedata.pipeline.audio_families import ArraySpec
-
-if TYPE_CHECKING:
-    from dancedata.pipeline.motion_families import MotionBatch, MotionSettings
+from dancedata.pipeline.motion_family_base import (
+    ArraySpec,
+    MotionBatch,
+    MotionFamily,
+    MotionSettings,
+)
 
 __all__ = ["AngularFamily", "GeometricFamily", "KinematicsFamily", "forward_rows"]
 
@@ -78,7 +80,7 @@ def _up_axis(batch: MotionBatch) -> str:
     return axis if axis in ("y", "z") else "y"
 
 
-class KinematicsFamily:
+class KinematicsFamily(MotionFamily):
     """Derivatives of joint positions, motion beats, kinetic features."""
 
     name = "kinematics"
@@ -177,7 +179,7 @@ class KinematicsFamily:
         }
 
 
-class AngularFamily:
+class AngularFamily(MotionFamily):
     """Angular velocity of each joint's local rotation, and the Laban weight effort."""
 
     name = "angular"
@@ -232,7 +234,7 @@ def _is_smpl24(skeleton: dict[str, Any]) -> bool:
     return joints == SMPL_JOINTS or (skeleton.get("name") == "smpl24" and len(joints) == 24)
 
 
-class GeometricFamily:
+class GeometricFamily(MotionFamily):
     """The 32 geometric (Müller) features of SMPL-24 poses, per sequence."""
 
     name = "geometric"

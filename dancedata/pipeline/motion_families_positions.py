@@ -9,27 +9,29 @@
   rebuild them; rigs with position channels below the root stored theirs at ingest from the
   per-frame joint translations and are refused here.
 
-Implements the :class:`~dancedata.pipeline.motion_families.MotionFamily` interface without
-subclassing it (no import cycle with ``motion_families``).
+Subclasses :class:`~dancedata.pipeline.motion_family_base.MotionFamily`; the registry in
+``motion_families`` imports it, never the other way round.
 """
 
 from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from dancedata.compute.fk import forward_kinematics
 from dancedata.compute.rotations import axis_angle_to_rotmat
 from dancedata.errors import InputError
-from dancedata.pipeline.audio_families import ArraySpec
+from dancedata.pipeline.motion_family_base import (
+    ArraySpec,
+    MotionBatch,
+    MotionFamily,
+    MotionSettings,
+)
 from dancedata.smpl import SMPL_JOINTS
 from dancedata.smpl_model import SMPL_MODEL_HELP, cached_smpl_model, smpl_joint_positions
-
-if TYPE_CHECKING:
-    from dancedata.pipeline.motion_families import MotionBatch, MotionSettings
 
 __all__ = ["PositionsFamily", "smpl_model_identity"]
 
@@ -57,7 +59,7 @@ def _is_smpl(skeleton: dict[str, Any]) -> bool:
     return joints == SMPL_JOINTS or (skeleton.get("name") == "smpl24" and len(joints) == 24)
 
 
-class PositionsFamily:
+class PositionsFamily(MotionFamily):
     """World joint positions from joint rotations and the root translation."""
 
     name = "positions"
