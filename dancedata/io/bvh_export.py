@@ -5,7 +5,7 @@ Two layouts:
 * **original** (stores from ``ingest bvh``): the skeleton attrs hold the file's hierarchy,
   OFFSETs, End Sites and every joint's channel list, so the file is rebuilt channel for channel.
   Angles come from ``motion/euler`` when its per-joint orders are the channels' (they are after
-  ingest; a featurized version keeps the orders but may pick the other equivalent angle triple),
+  ingest, and featurize keeps the ingested channels: the file's own triples and branch),
   else from ``motion/axis_angle``, converted in each joint's channel order and made continuous
   over time. Position channels come from ``motion/trans`` and, on rigs with position channels
   below the root, ``motion/local_translations``. Lengths are written in the file's own unit

@@ -244,7 +244,17 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
                 build=build,
                 families=tuple(f.name for f in motion_families),
                 settings=settings,
-                needed=tuple(sorted({r for f in motion_families for r in f.requires})),
+                needed=tuple(
+                    sorted(
+                        {r for f in motion_families for r in f.requires}
+                        | {
+                            r
+                            for f in motion_families
+                            for r in getattr(f, "reads_if_present", ())
+                            if reader.has_array(f"motion/{r}")
+                        }
+                    )
+                ),
             )
             units = plan_motion_units(starts, stops, CHUNK_FRAMES, options.unit_frames)
             jobs.append(

@@ -54,10 +54,18 @@ __all__ = [
 
 class RotationsFamily(MotionFamily):
     """rotmat, euler, quat (wxyz, sign-continuous within each sequence), rot6d (Zhou's
-    columns) and, on request, rot6d_rows (pytorch3d's and EDGE's rows)."""
+    columns) and, on request, rot6d_rows (pytorch3d's and EDGE's rows).
+
+    On a BVH store whose ``euler`` (the file's own channels, stored at ingest) is already in
+    the asked orders, ``euler`` is kept as it is rather than re-derived from ``axis_angle``: the
+    same rotations, but the source's angle triples and branch, so that ``export bvh`` after
+    featurize writes the channels as read (within float32 rounding, 7e-6 degrees), not the
+    principal branch of a float32 round trip (up to 4e-5 degrees near gimbal lock, 360 degrees
+    where the file winds)."""
 
     name = "rotations"
     requires = ("axis_angle",)
+    reads_if_present = ("euler",)
 
     def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
         return [
@@ -74,6 +82,8 @@ class RotationsFamily(MotionFamily):
         reps = representations_from_axis_angle(
             batch.axis_angle, settings.representations, settings.euler_order
         )
+        if "euler" in reps and _source_euler_fits(batch, settings):
+            reps["euler"] = batch.arrays["euler"]
         if "quat" in reps:
             quat = reps["quat"]
             for part in batch.sequences():
@@ -84,7 +94,20 @@ class RotationsFamily(MotionFamily):
         return {
             "representations": sorted(settings.representations),
             "euler_order": settings.euler_order,
+            "euler_from": "the ingested motion/euler (BVH channels) when its per-joint orders "
+            "are euler_order, else axis_angle",
         }
+
+
+def _source_euler_fits(batch: MotionBatch, settings: MotionSettings) -> bool:
+    """The batch holds the source Euler channels of a BVH store, in the orders asked for."""
+    orders = batch.attrs.get("euler_orders")
+    return (
+        "euler" in batch.arrays
+        and batch.attrs.get("source") == "bvh"
+        and isinstance(orders, list)
+        and list(settings.euler_order) == orders
+    )
 
 
 FAMILIES: dict[str, MotionFamily] = {
