@@ -7,7 +7,9 @@ checksums and fingerprint (same inputs and settings: nothing is written) → mus
 
 One store holds one skeleton: every file must match the first (or, with ``append``, the
 store's) in joint names, parents, channel layout, End Sites and offsets (within
-``skeleton_atol_m``), and all must share one frame rate (``--fps`` resamples them to one).
+``skeleton_atol_m``, on the components no position channel overwrites: see
+:func:`~dancedata.io.bvh_attrs.skeleton_mismatch`), and all must share one frame rate (``--fps``
+resamples them to one).
 
 Replace or append: by default the new version holds exactly the given files (its parent is
 recorded, nothing is carried over), as the other ingest commands do. ``append`` keeps the
