@@ -242,14 +242,14 @@ def test_long_track_whole_and_overlap_add(folder, tmp_path) -> None:
         audio, FILE_SR, weights_dir=folder, chunk_seconds=30.0, overlap_seconds=1.0
     )
     assert old_plan["method"] == "overlap_add_crossfade"
-    small, small_plan = umx.separate_channels(audio, FILE_SR, weights_dir=folder, memory_mb=500.0)
+    small, small_plan = umx.separate_channels(audio, FILE_SR, weights_dir=folder, memory_mb=520.0)
     assert small_plan["method"] == "overlap_add_crossfade"
-    assert small_plan["chunk_seconds"] == 15.0 and small_plan["overlap_seconds"] == 4.0
     snr = {
         name: {stem: snr_db(result[stem], whole[stem]) for stem in STEM_NAMES}
         for name, result in (("whole", ours), ("chunks_30s_1s", chunked_30), ("ola_15s_4s", small))
     }
-    print("SNR dB vs whole-track openunmix:", json.dumps(snr, indent=1))
+    print("SNR dB vs whole-track openunmix:", json.dumps(snr, indent=1), small_plan)
+    assert small_plan["chunk_seconds"] == 15.0 and small_plan["overlap_seconds"] == 4.0
     assert min(snr["whole"].values()) > 100.0
     assert min(snr["ola_15s_4s"].values()) > OLA_MIN_SNR_DB
 
