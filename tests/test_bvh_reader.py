@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from dancedata.compute.bvh_kinematics import world_positions
 from dancedata.errors import InputError
 from dancedata.io import bvh
 from dancedata.io.bvh import (
@@ -19,7 +20,6 @@ from dancedata.io.bvh import (
     parse_bvh,
     read_bvh,
     root_translation,
-    world_positions,
 )
 
 # file, joints, channels, frames, frame time (as printed), nominal fps, End Sites, orders

@@ -9,22 +9,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from dancedata.compute.bvh_kinematics import clip_from_rotations, local_rotmats, world_positions
 from dancedata.compute.euler_continuity import euler_alternative, euler_continuous, euler_nearest
 from dancedata.compute.fk import forward_kinematics
 from dancedata.io.bvh import (
     BvhClip,
     BvhSkeleton,
     clip_from_arrays,
-    clip_from_rotations,
     euler_degrees,
     format_bvh,
-    local_rotmats,
     local_translations,
     make_skeleton,
     parse_bvh,
     read_bvh,
     scale_clip,
-    world_positions,
     write_bvh,
 )
 

@@ -9,21 +9,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from dancedata.compute.bvh_kinematics import clip_from_rotations, local_rotmats, world_positions
 from dancedata.compute.fk import (
     forward_kinematics,
     topological_order,
     transform_points,
     world_transforms,
 )
-from dancedata.io.bvh import (
-    BvhClip,
-    BvhSkeleton,
-    clip_from_rotations,
-    local_rotmats,
-    local_translations,
-    read_bvh,
-    world_positions,
-)
+from dancedata.io.bvh import BvhClip, BvhSkeleton, local_translations, read_bvh
 
 
 def _reference_fk(clip: BvhClip, frame: int) -> tuple[np.ndarray, list[np.ndarray]]:

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from dancedata.compute.bvh_kinematics import world_positions
 from dancedata.compute.fk import forward_kinematics
 from dancedata.compute.ik import (
     IK_METHOD,
@@ -30,7 +31,7 @@ from dancedata.compute.ik import (
     solve_rotations,
 )
 from dancedata.errors import InputError
-from dancedata.io.bvh import read_bvh, world_positions
+from dancedata.io.bvh import read_bvh
 from dancedata.io.openpose import BODY_25, COCO_18
 from dancedata.pipeline.motion_families import MotionBatch, MotionSettings
 from dancedata.pipeline.motion_families_ik import RotationsFromPositionsFamily

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dancedata.io.bvh import BvhClip, BvhSkeleton, read_bvh, world_positions, write_bvh
+from dancedata.compute.bvh_kinematics import world_positions
+from dancedata.io.bvh import BvhClip, BvhSkeleton, read_bvh, write_bvh
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
 from dancedata.store.validate import validate_store

@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation, Slerp
 
+from dancedata.compute.bvh_kinematics import local_rotmats, resample_clip
 from dancedata.compute.resample import (
     decimation_step,
     resample_motion,
@@ -19,7 +20,7 @@ from dancedata.compute.resample import (
     resampled_frame_count,
     slerp,
 )
-from dancedata.io.bvh import euler_degrees, local_rotmats, read_bvh, resample_clip
+from dancedata.io.bvh import euler_degrees, read_bvh
 
 
 def _random_motion(n_frames: int, n_joints: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -11,7 +11,7 @@ Order of operations (each optional step recorded in the manifest config):
    decimation also acts as an anti-alias filter. Euler channels are then re-derived on the
    branch nearest the original curves (winding kept). Translations are not smoothed;
 4. resample (``--fps``): exact decimation for an integer rate ratio, SLERP otherwise
-   (:func:`~dancedata.io.bvh.resample_clip`);
+   (:func:`~dancedata.compute.bvh_kinematics.resample_clip`);
 5. arrays, all float64 here (the store keeps float32): ``euler`` (radians, each joint's own
    order), ``axis_angle``, ``trans`` (root position, metres), ``positions`` (FK, metres) and,
    for rigs with position channels on non-root joints, ``local_translations`` (each joint's
@@ -27,22 +27,24 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from dancedata.compute.bvh_kinematics import (
+    clip_from_rotations,
+    local_rotmats,
+    resample_clip,
+    world_positions,
+)
 from dancedata.compute.smoothing import smooth_quaternions
 from dancedata.errors import InputError
 from dancedata.ingest.bvh_units import PLAUSIBLE_SIZE_M, LengthUnit, check_rig_size, rig_size
 from dancedata.io.bvh import (
     BvhClip,
-    clip_from_rotations,
     declared_frames,
     euler_degrees,
     euler_radians,
-    local_rotmats,
     local_translations,
     read_bvh,
-    resample_clip,
     root_translation,
     scale_clip,
-    world_positions,
 )
 
 __all__ = ["BvhMotion", "BvhSettings", "has_joint_translations", "process_bvh"]

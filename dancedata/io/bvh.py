@@ -24,6 +24,10 @@ other joint, *replace* that joint's OFFSET (the reading of bvhio, Blender and Mo
 
 Values are kept in file units (often centimetres or inches) and degrees; :func:`scale_clip`
 converts lengths, e.g. to metres for a store.
+
+This module parses and writes only (it imports nothing of dancedata above ``errors`` and
+``io``): rotations, forward kinematics, export angles and resampling of a clip are in
+:mod:`dancedata.compute.bvh_kinematics`.
 """
 
 from __future__ import annotations
@@ -32,7 +36,6 @@ import io
 import math
 import os
 import re
-import warnings
 from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -40,16 +43,7 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from dancedata.compute.euler_continuity import euler_continuous, euler_nearest
-from dancedata.compute.fk import forward_kinematics
-from dancedata.compute.resample import (
-    decimation_step,
-    resample_linear,
-    resample_positions,
-    resample_quaternions,
-)
 from dancedata.errors import InputError
 from dancedata.io.bvh_head import (
     FRAME_TIME_RANGE_S,
@@ -70,21 +64,17 @@ __all__ = [
     "BvhClip",
     "BvhSkeleton",
     "clip_from_arrays",
-    "clip_from_rotations",
     "declared_frames",
     "euler_degrees",
     "euler_radians",
     "format_bvh",
-    "local_rotmats",
     "local_translations",
     "make_skeleton",
     "parse_bvh",
     "read_bvh",
-    "resample_clip",
     "root_translation",
     "scale_clip",
     "values_from_arrays",
-    "world_positions",
     "write_bvh",
 ]
 
@@ -887,11 +877,6 @@ def euler_radians(clip: BvhClip) -> np.ndarray:
     return np.radians(euler_degrees(clip))
 
 
-def local_rotmats(clip: BvhClip) -> np.ndarray:
-    """(F, J, 3, 3) local joint rotations, ``R = R_axis1 @ R_axis2 @ R_axis3``."""
-    return _euler_deg_to_rotmat(euler_degrees(clip), clip.skeleton.rotation_orders)
-
-
 def local_translations(clip: BvhClip) -> np.ndarray:
     """(F, J, 3) translation of each joint from its parent, file units: the OFFSET, replaced
     axis by axis by the joint's position channels where it has them."""
@@ -906,14 +891,6 @@ def local_translations(clip: BvhClip) -> np.ndarray:
 def root_translation(clip: BvhClip) -> np.ndarray:
     """(F, 3) root position in file units (its position channels, else its OFFSET)."""
     return local_translations(clip)[:, 0]
-
-
-def world_positions(clip: BvhClip) -> np.ndarray:
-    """(F, J, 3) world joint positions by forward kinematics, file units."""
-    trans = local_translations(clip)
-    return forward_kinematics(
-        clip.skeleton.parents, clip.skeleton.offsets, local_rotmats(clip), joint_translations=trans
-    )
 
 
 def values_from_arrays(
@@ -953,63 +930,6 @@ def clip_from_arrays(
     return BvhClip(skeleton, frame_time_s, values_from_arrays(skeleton, euler_deg, translations))
 
 
-def clip_from_rotations(
-    skeleton: BvhSkeleton,
-    frame_time_s: float,
-    rotmats: np.ndarray,
-    translations: np.ndarray | None = None,
-    reference_euler_deg: np.ndarray | None = None,
-) -> BvhClip:
-    """A clip from (F, J, 3, 3) local rotation matrices, e.g. for export from a store.
-
-    Euler angles are taken in each joint's channel order. Of the equivalent angle triples, the
-    one nearest ``reference_euler_deg`` (F, J, 3) is chosen when given, otherwise the curve is
-    made continuous over time (no ±180° jumps, no branch flips), which is what smoothing and
-    animation tools need. Rotations about axes a joint has no channel for are lost.
-    """
-    rotmats = np.asarray(rotmats, dtype=np.float64)
-    euler = _rotmat_to_euler_rad(rotmats, skeleton.rotation_orders)
-    orders = skeleton.rotation_orders
-    out = np.empty_like(euler)
-    for order in sorted(set(orders)):
-        idx = [j for j, o in enumerate(orders) if o == order]
-        if reference_euler_deg is not None:
-            ref = np.radians(np.asarray(reference_euler_deg, dtype=np.float64)[:, idx])
-            out[:, idx] = euler_nearest(euler[:, idx], ref, order)
-        else:
-            out[:, idx] = euler_continuous(euler[:, idx], order)
-    return clip_from_arrays(skeleton, frame_time_s, np.degrees(out), translations)
-
-
-def resample_clip(clip: BvhClip, fps: float, rtol: float = 1e-3) -> BvhClip:
-    """Resample a clip to ``fps`` (see :mod:`dancedata.compute.resample` for the frame count).
-
-    An integer rate ratio k keeps every k-th frame bit for bit (frame time × k). Otherwise
-    rotations are SLERPed and position channels interpolated linearly. Euler angles are then
-    taken on the branch nearest the (unwrapped, linearly interpolated) source curves and
-    written with the winding (multiple of 360°) of the nearest source frame, so an output frame
-    that falls on a source frame gets that frame's channel values back.
-    """
-    k = decimation_step(clip.fps, fps, rtol)
-    if k is not None:
-        return BvhClip(clip.skeleton, clip.frame_time_s * k, clip.values[::k].copy())
-    positions = resample_positions(clip.n_frames, clip.fps, fps, rtol)
-    quat = Rotation.from_matrix(local_rotmats(clip).reshape(-1, 3, 3)).as_quat()
-    quat = quat.reshape(clip.n_frames, clip.skeleton.n_joints, 4)[..., [3, 0, 1, 2]]
-    new_quat = resample_quaternions(quat, positions)
-    rotmats = Rotation.from_quat(new_quat[..., [1, 2, 3, 0]].reshape(-1, 4)).as_matrix()
-    rotmats = rotmats.reshape(len(positions), clip.skeleton.n_joints, 3, 3)
-    reference = np.degrees(
-        resample_linear(np.unwrap(np.radians(euler_degrees(clip)), axis=0), positions)
-    )
-    translations = resample_linear(local_translations(clip), positions)
-    out = clip_from_rotations(clip.skeleton, 1.0 / fps, rotmats, translations, reference)
-    nearest = euler_degrees(clip)[np.rint(positions).astype(np.int64)]
-    euler = euler_degrees(out)
-    euler += 360.0 * np.rint((nearest - euler) / 360.0)
-    return clip_from_arrays(clip.skeleton, 1.0 / fps, euler, translations)
-
-
 def scale_clip(clip: BvhClip, factor: float) -> BvhClip:
     """Multiply every length (offsets, End Sites, position channels) by ``factor``, e.g.
     0.01 for centimetres → metres. Angles are unchanged."""
@@ -1025,29 +945,6 @@ def scale_clip(clip: BvhClip, factor: float) -> BvhClip:
     pos = skel._position_columns
     values[:, pos[pos >= 0]] *= factor
     return BvhClip(scaled, clip.frame_time_s, values)
-
-
-def _euler_deg_to_rotmat(euler_deg: np.ndarray, orders: tuple[str, ...]) -> np.ndarray:
-    n_frames, n_joints = euler_deg.shape[:2]
-    out = np.empty((n_frames, n_joints, 3, 3))
-    for order in set(orders):
-        idx = [j for j, o in enumerate(orders) if o == order]
-        flat = euler_deg[:, idx].reshape(-1, 3)
-        mats = Rotation.from_euler(order, flat, degrees=True).as_matrix()
-        out[:, idx] = mats.reshape(n_frames, len(idx), 3, 3)
-    return out
-
-
-def _rotmat_to_euler_rad(rotmats: np.ndarray, orders: tuple[str, ...]) -> np.ndarray:
-    n_frames, n_joints = rotmats.shape[:2]
-    out = np.empty((n_frames, n_joints, 3))
-    for order in set(orders):
-        idx = [j for j, o in enumerate(orders) if o == order]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)  # gimbal lock: scipy picks a split
-            angles = Rotation.from_matrix(rotmats[:, idx].reshape(-1, 3, 3)).as_euler(order)
-        out[:, idx] = angles.reshape(n_frames, len(idx), 3)
-    return out
 
 
 # --------------------------------------------------------------------------------------------

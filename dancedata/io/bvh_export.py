@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from dancedata.compute.bvh_kinematics import clip_from_rotations
 from dancedata.compute.fk import topological_order
 from dancedata.compute.rotations import axis_angle_to_rotmat
 from dancedata.errors import InputError, StoreError
@@ -40,7 +41,6 @@ from dancedata.io.bvh import (
     BvhClip,
     BvhSkeleton,
     clip_from_arrays,
-    clip_from_rotations,
     make_skeleton,
     scale_clip,
     write_bvh,
