@@ -254,7 +254,16 @@ def test_openunmix_family_end_to_end(raw, tmp_path, monkeypatch) -> None:
 
     music, y = _track(opened)
     with threadpool_limits(1):
-        stems = separate(y, SR, backend="openunmix", weights_dir=weights)
+        # OpenUnmix separates the file's own samples (its rate and channels, issue 14), and the
+        # stems reach the feature rate afterwards; the file is read here by soundfile directly.
+        import soundfile as sf
+
+        from dancedata.compute.stems_openunmix import separate_channels
+
+        native, native_sr = sf.read(music["path"], dtype="float32", always_2d=True)
+        stems, _ = separate_channels(
+            native.T, native_sr, out_sr=SR, out_length=y.size, weights_dir=weights
+        )
         features = all_stem_features(stems, SR)
     n = music["frame_stop"] - music["frame_start"]
     for stem in STEM_NAMES:
