@@ -42,6 +42,15 @@ StemsWeights = Annotated[
         "default: the torch hub cache. Nothing is downloaded. Their sha256 go into the config.",
     ),
 ]
+StemsMemoryMb = Annotated[
+    float,
+    typer.Option(
+        min=1.0,
+        help="OpenUnmix: separate a whole track in one pass (as openunmix does) when its estimated "
+        "peak memory fits this many MB (about 26 MB per second of stereo 44.1 kHz), else in "
+        "cross-faded chunks that fit. Recorded.",
+    ),
+]
 NmfdIterations = Annotated[
     int, typer.Option(min=1, help="NMFD iterations (KL multiplicative updates) on the drums stem.")
 ]

@@ -294,6 +294,7 @@ def test_featurize_cli_reads_an_openunmix_model_folder(folder, tmp_path) -> None
     run_cli(
         "featurize", str(store), "-q", "--no-motion", "--audio-families", "stems",
         "--stems", "openunmix", "--stems-weights", str(folder), "--no-cache",
+        "--stems-memory-mb", "3000",
         env={"TORCH_HOME": str(tmp_path / "torch")},
     )  # fmt: skip
     opened = dancedata.open_store(store)
@@ -305,7 +306,7 @@ def test_featurize_cli_reads_an_openunmix_model_folder(folder, tmp_path) -> None
         "nb_channels": 2,
     }
     assert config["separation"] == OPENUNMIX_SEPARATION
-    assert (config["chunk_seconds"], config["memory_mb"]) == (None, 4096.0)
+    assert (config["chunk_seconds"], config["memory_mb"]) == (None, 3000.0)
     assert set(config["weights"]) == set(STEM_NAMES)
     assert opened.manifest["config"]["audio_families"]["stems"]["stem_backend"] == config
 

@@ -81,6 +81,7 @@ def separation_options(settings: AudioSettings) -> dict[str, Any]:
             "model": settings.stems_model,
             "weights_dir": settings.stems_weights,
             "device": settings.stems_device,
+            "memory_mb": float(settings.stems_memory_mb),
         }
     return {}
 

@@ -43,7 +43,8 @@ class AudioSettings:
     it reads through its ``config``.
 
     ``stems``: stem backend, ``offline`` (weight-free), ``openunmix`` (pretrained
-    ``stems_model`` weights from ``stems_weights`` or the torch hub cache) or ``none``.
+    ``stems_model`` weights from ``stems_weights`` or the torch hub cache) or ``none``;
+    ``stems_memory_mb`` bounds an OpenUnmix pass (whole tracks up to it, else cross-faded chunks).
     ``nmfd_iterations`` (KL multiplicative updates) and ``nmfd_template_frames`` (template length
     in feature frames, 8 → 133 ms at 60 fps) set the drums NMFD. ``stft_sr`` (Hz) is the rate of
     the per-motion-frame STFT family; ``tempogram_frames`` its window in feature frames.
@@ -53,6 +54,7 @@ class AudioSettings:
     stems_model: str = "umxhq"
     stems_weights: str | None = None
     stems_device: str = "cpu"
+    stems_memory_mb: float = 4096.0
     nmfd_iterations: int = 30
     nmfd_template_frames: int = 8
     stft_sr: int = 16000
