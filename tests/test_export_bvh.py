@@ -14,12 +14,12 @@ from dancedata.cli.main import app
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
-from dancedata.compute.bvh_kinematics import local_rotmats, world_positions
+from dancedata.bvh_ops import local_rotmats, world_positions
 from dancedata.errors import InputError, StoreError
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
 from dancedata.io.bvh import euler_degrees, local_translations, read_bvh
-from dancedata.io.bvh_export import BvhExportOptions, export_bvh
+from dancedata.pipeline.export_bvh import BvhExportOptions, export_bvh
 from dancedata.pipeline.featurize import FeaturizeOptions, featurize
 from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS
 from dancedata.store.reader import VersionReader

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dancedata.compute.bvh_kinematics import world_positions
+from dancedata.bvh_ops import world_positions
 from dancedata.compute.fk import forward_kinematics
 from dancedata.compute.ik import (
     IK_METHOD,

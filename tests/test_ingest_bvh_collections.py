@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dancedata.compute.bvh_kinematics import world_positions
+from dancedata.bvh_ops import world_positions
 from dancedata.io.bvh import BvhClip, BvhSkeleton, read_bvh, write_bvh
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
@@ -405,7 +405,7 @@ def test_export_after_featurize_writes_the_source_channels(
     near gimbal lock and where the file winds past 180 degrees alike."""
     from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
     from dancedata.io.bvh import euler_degrees
-    from dancedata.io.bvh_export import BvhExportOptions, export_bvh
+    from dancedata.pipeline.export_bvh import BvhExportOptions, export_bvh
     from dancedata.pipeline.featurize import FeaturizeOptions, featurize
 
     source = real_data / "bvh" / f"{name}.bvh"

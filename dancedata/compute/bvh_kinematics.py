@@ -1,12 +1,10 @@
-"""Kinematics of a parsed BVH clip: rotations, forward kinematics, export angles, resampling.
+"""BVH rotation conventions as plain array functions: Euler channels <-> rotation matrices.
 
-:mod:`dancedata.io.bvh` only parses and writes the file (hierarchy, channels, frame values and
-the per-joint channel arrays); the operations on a clip live here (issue 15 item 3: formats
-parse, operations compute), as plain functions of a :class:`~dancedata.io.bvh.BvhClip`.
-
-Conventions: a channel list ``Zrotation Xrotation Yrotation`` means ``R = Rz @ Rx @ Ry``, i.e.
-scipy intrinsic ``from_euler("ZXY", [z, x, y], degrees=True)``; lengths stay in the clip's
-units (file units until :func:`~dancedata.io.bvh.scale_clip`), angles in degrees.
+A BVH channel list ``Zrotation Xrotation Yrotation`` means ``R = Rz @ Rx @ Ry``, i.e. scipy
+intrinsic ``from_euler("ZXY", [z, x, y], degrees=True)``; each joint has its own order string.
+These functions take and return arrays only (angles in degrees unless named ``_rad``), so they
+import nothing of dancedata but compute/ (issue 15 item 3: formats parse, operations compute);
+the clip-level operations built on them are in :mod:`dancedata.bvh_ops`.
 """
 
 from __future__ import annotations
@@ -17,95 +15,13 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dancedata.compute.euler_continuity import euler_continuous, euler_nearest
-from dancedata.compute.fk import forward_kinematics
-from dancedata.compute.resample import (
-    decimation_step,
-    resample_linear,
-    resample_positions,
-    resample_quaternions,
-)
-from dancedata.io.bvh import (
-    BvhClip,
-    BvhSkeleton,
-    clip_from_arrays,
-    euler_degrees,
-    local_translations,
-)
 
-__all__ = ["clip_from_rotations", "local_rotmats", "resample_clip", "world_positions"]
+__all__ = ["euler_from_rotmats", "euler_to_rotmats", "rotmats_to_euler_rad"]
 
 
-def local_rotmats(clip: BvhClip) -> np.ndarray:
-    """(F, J, 3, 3) local joint rotations, ``R = R_axis1 @ R_axis2 @ R_axis3``."""
-    return _euler_deg_to_rotmat(euler_degrees(clip), clip.skeleton.rotation_orders)
-
-
-def world_positions(clip: BvhClip) -> np.ndarray:
-    """(F, J, 3) world joint positions by forward kinematics, file units."""
-    trans = local_translations(clip)
-    return forward_kinematics(
-        clip.skeleton.parents, clip.skeleton.offsets, local_rotmats(clip), joint_translations=trans
-    )
-
-
-def clip_from_rotations(
-    skeleton: BvhSkeleton,
-    frame_time_s: float,
-    rotmats: np.ndarray,
-    translations: np.ndarray | None = None,
-    reference_euler_deg: np.ndarray | None = None,
-) -> BvhClip:
-    """A clip from (F, J, 3, 3) local rotation matrices, e.g. for export from a store.
-
-    Euler angles are taken in each joint's channel order. Of the equivalent angle triples, the
-    one nearest ``reference_euler_deg`` (F, J, 3) is chosen when given, otherwise the curve is
-    made continuous over time (no ±180° jumps, no branch flips), which is what smoothing and
-    animation tools need. Rotations about axes a joint has no channel for are lost.
-    """
-    rotmats = np.asarray(rotmats, dtype=np.float64)
-    euler = _rotmat_to_euler_rad(rotmats, skeleton.rotation_orders)
-    orders = skeleton.rotation_orders
-    out = np.empty_like(euler)
-    for order in sorted(set(orders)):
-        idx = [j for j, o in enumerate(orders) if o == order]
-        if reference_euler_deg is not None:
-            ref = np.radians(np.asarray(reference_euler_deg, dtype=np.float64)[:, idx])
-            out[:, idx] = euler_nearest(euler[:, idx], ref, order)
-        else:
-            out[:, idx] = euler_continuous(euler[:, idx], order)
-    return clip_from_arrays(skeleton, frame_time_s, np.degrees(out), translations)
-
-
-def resample_clip(clip: BvhClip, fps: float, rtol: float = 1e-3) -> BvhClip:
-    """Resample a clip to ``fps`` (see :mod:`dancedata.compute.resample` for the frame count).
-
-    An integer rate ratio k keeps every k-th frame bit for bit (frame time × k). Otherwise
-    rotations are SLERPed and position channels interpolated linearly. Euler angles are then
-    taken on the branch nearest the (unwrapped, linearly interpolated) source curves and
-    written with the winding (multiple of 360°) of the nearest source frame, so an output frame
-    that falls on a source frame gets that frame's channel values back.
-    """
-    k = decimation_step(clip.fps, fps, rtol)
-    if k is not None:
-        return BvhClip(clip.skeleton, clip.frame_time_s * k, clip.values[::k].copy())
-    positions = resample_positions(clip.n_frames, clip.fps, fps, rtol)
-    quat = Rotation.from_matrix(local_rotmats(clip).reshape(-1, 3, 3)).as_quat()
-    quat = quat.reshape(clip.n_frames, clip.skeleton.n_joints, 4)[..., [3, 0, 1, 2]]
-    new_quat = resample_quaternions(quat, positions)
-    rotmats = Rotation.from_quat(new_quat[..., [1, 2, 3, 0]].reshape(-1, 4)).as_matrix()
-    rotmats = rotmats.reshape(len(positions), clip.skeleton.n_joints, 3, 3)
-    reference = np.degrees(
-        resample_linear(np.unwrap(np.radians(euler_degrees(clip)), axis=0), positions)
-    )
-    translations = resample_linear(local_translations(clip), positions)
-    out = clip_from_rotations(clip.skeleton, 1.0 / fps, rotmats, translations, reference)
-    nearest = euler_degrees(clip)[np.rint(positions).astype(np.int64)]
-    euler = euler_degrees(out)
-    euler += 360.0 * np.rint((nearest - euler) / 360.0)
-    return clip_from_arrays(clip.skeleton, 1.0 / fps, euler, translations)
-
-
-def _euler_deg_to_rotmat(euler_deg: np.ndarray, orders: tuple[str, ...]) -> np.ndarray:
+def euler_to_rotmats(euler_deg: np.ndarray, orders: tuple[str, ...]) -> np.ndarray:
+    """(F, J, 3, 3) rotation matrices from (F, J, 3) Euler angles in degrees, joint j's
+    angles in the intrinsic order ``orders[j]`` (e.g. "ZXY")."""
     n_frames, n_joints = euler_deg.shape[:2]
     out = np.empty((n_frames, n_joints, 3, 3))
     for order in set(orders):
@@ -116,7 +32,9 @@ def _euler_deg_to_rotmat(euler_deg: np.ndarray, orders: tuple[str, ...]) -> np.n
     return out
 
 
-def _rotmat_to_euler_rad(rotmats: np.ndarray, orders: tuple[str, ...]) -> np.ndarray:
+def rotmats_to_euler_rad(rotmats: np.ndarray, orders: tuple[str, ...]) -> np.ndarray:
+    """(F, J, 3) principal-branch Euler angles in radians of (F, J, 3, 3) rotation matrices,
+    joint j in the intrinsic order ``orders[j]``; at gimbal lock scipy's split is kept."""
     n_frames, n_joints = rotmats.shape[:2]
     out = np.empty((n_frames, n_joints, 3))
     for order in set(orders):
@@ -126,3 +44,26 @@ def _rotmat_to_euler_rad(rotmats: np.ndarray, orders: tuple[str, ...]) -> np.nda
             angles = Rotation.from_matrix(rotmats[:, idx].reshape(-1, 3, 3)).as_euler(order)
         out[:, idx] = angles.reshape(n_frames, len(idx), 3)
     return out
+
+
+def euler_from_rotmats(
+    rotmats: np.ndarray,
+    orders: tuple[str, ...],
+    reference_euler_deg: np.ndarray | None = None,
+) -> np.ndarray:
+    """(F, J, 3) Euler angles in degrees of (F, J, 3, 3) rotations, for writing channels.
+
+    Of the equivalent angle triples, the one nearest ``reference_euler_deg`` (F, J, 3) is chosen
+    when given, otherwise the curve is made continuous over time (no ±180° jumps, no branch
+    flips), which is what smoothing and animation tools need."""
+    rotmats = np.asarray(rotmats, dtype=np.float64)
+    euler = rotmats_to_euler_rad(rotmats, orders)
+    out = np.empty_like(euler)
+    for order in sorted(set(orders)):
+        idx = [j for j, o in enumerate(orders) if o == order]
+        if reference_euler_deg is not None:
+            ref = np.radians(np.asarray(reference_euler_deg, dtype=np.float64)[:, idx])
+            out[:, idx] = euler_nearest(euler[:, idx], ref, order)
+        else:
+            out[:, idx] = euler_continuous(euler[:, idx], order)
+    return np.degrees(out)

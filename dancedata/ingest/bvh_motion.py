@@ -11,7 +11,7 @@ Order of operations (each optional step recorded in the manifest config):
    decimation also acts as an anti-alias filter. Euler channels are then re-derived on the
    branch nearest the original curves (winding kept). Translations are not smoothed;
 4. resample (``--fps``): exact decimation for an integer rate ratio, SLERP otherwise
-   (:func:`~dancedata.compute.bvh_kinematics.resample_clip`);
+   (:func:`~dancedata.bvh_ops.resample_clip`);
 5. arrays, all float64 here (the store keeps float32): ``euler`` (radians, each joint's own
    order), ``axis_angle``, ``trans`` (root position, metres), ``positions`` (FK, metres) and,
    for rigs with position channels on non-root joints, ``local_translations`` (each joint's
@@ -27,15 +27,15 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dancedata.compute.bvh_kinematics import (
+from dancedata.bvh_ops import (
     clip_from_rotations,
     local_rotmats,
     resample_clip,
     world_positions,
 )
+from dancedata.compute.bvh_units import PLAUSIBLE_SIZE_M, LengthUnit, check_rig_size, rig_size
 from dancedata.compute.smoothing import smooth_quaternions
 from dancedata.errors import InputError
-from dancedata.ingest.bvh_units import PLAUSIBLE_SIZE_M, LengthUnit, check_rig_size, rig_size
 from dancedata.io.bvh import (
     BvhClip,
     declared_frames,
@@ -102,7 +102,7 @@ class BvhMotion:
         fps: frame rate of the stored frames.
         source_fps: the file's nominal frame rate; source_frames: its frame count;
         source_frame_time_s: its Frame Time exactly as written.
-        size_m: the rig's size (see :func:`~dancedata.ingest.bvh_units.rig_size`).
+        size_m: the rig's size (see :func:`~dancedata.compute.bvh_units.rig_size`).
         euler, axis_angle: (F, J, 3); trans: (F, 3); positions: (F, J, 3);
         local_translations: (F, J, 3) or None (see the module docstring).
         declared_frames: the count the file's ``Frames:`` line declares (``source_frames`` is

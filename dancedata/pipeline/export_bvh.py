@@ -1,4 +1,7 @@
-"""Write a stored sequence back to BVH.
+"""Write a stored sequence back to BVH: read the store, solve the clip, write the file.
+
+The pipeline step of BVH export (issue 15 item 3): store access, rest offsets and rotations are
+here, the file text is written by :func:`dancedata.io.bvh.write_bvh` from the plain clip.
 
 Two layouts:
 
@@ -33,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from dancedata.compute.bvh_kinematics import clip_from_rotations
+from dancedata.bvh_ops import clip_from_rotations
 from dancedata.compute.fk import topological_order
 from dancedata.compute.rotations import axis_angle_to_rotmat
 from dancedata.errors import InputError, StoreError
@@ -112,7 +115,7 @@ def _sequence_row(reader: VersionReader, seq_id: str) -> dict[str, Any]:
 
 
 def _units(name: str) -> tuple[str, float]:
-    from dancedata.ingest.bvh_units import parse_units
+    from dancedata.compute.bvh_units import parse_units
 
     unit = parse_units(name)
     return unit.name, unit.metres
