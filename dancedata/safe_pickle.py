@@ -40,7 +40,7 @@ malformed file as :class:`~dancedata.errors.InputError` (``unreadable pickle: ..
 naming the file. Real AIST++ pickles load bit-identically to ``pickle.load``.
 
 Subclasses may override :meth:`RestrictedUnpickler.find_class` to admit their own callables
-(``dancedata.smpl_model`` admits stand-ins for scipy sparse matrices); those are trusted code
+(``dancedata.io.smpl_model`` admits stand-ins for scipy sparse matrices); those are trusted code
 and are called with the file's arguments, so they must not trust them.
 """
 
@@ -1067,7 +1067,7 @@ _DISPATCH: dict[int, Any] = {
     0x98: _op_refused("out-of-band buffer (READONLY_BUFFER)"),
 }
 
-# Kept for callers that subclass it by its old name (dancedata.smpl_model).
+# Kept for callers that subclass it by its old name (dancedata.io.smpl_model).
 _RestrictedUnpickler = RestrictedUnpickler
 
 

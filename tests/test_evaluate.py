@@ -15,6 +15,7 @@ import pytest
 
 import dancedata
 from dancedata.compute.rotations import axis_angle_to_rotmat, quat_to_axis_angle
+from dancedata.compute.smpl_joints import smpl_joint_positions
 from dancedata.errors import InputError
 from dancedata.experiments.metrics import (
     bas_bailando,
@@ -24,7 +25,7 @@ from dancedata.experiments.metrics import (
     mse,
 )
 from dancedata.io.generated_motion import read_generated_motion
-from dancedata.smpl_model import load_smpl_model, smpl_joint_positions
+from dancedata.io.smpl_model import load_smpl_model
 from tests.helpers import run_cli
 from tests.test_motion_families import write_npz_model
 

@@ -68,7 +68,6 @@ LAYER_OF: dict[str, tuple[str, str]] = {
     "dancedata.compute": ("compute", "pure array-in, array-out functions"),
     "dancedata.smpl": ("compute", "SMPL-24 joint names and parents: constant tables"),
     "dancedata.bvh_ops": ("compute", "operations on a parsed BVH clip: io.bvh + compute arrays"),
-    "dancedata.smpl_model": ("compute", "SMPL rest joints from a model file (item 3 splits it)"),
     "dancedata.aist_names": ("compute", "AIST++ sequence-name parsing: pure string functions"),
     "dancedata.batching": ("compute", "length bucketing of windows: pure index arithmetic"),
     "dancedata.window_fit": ("compute", "crop/pad a window to a fixed length: pure arrays"),

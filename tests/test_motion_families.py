@@ -22,10 +22,10 @@ from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
 from dancedata.ingest.video import VideoIngestOptions, ingest_video
 from dancedata.ingest.video_poses import PoseSettings
 from dancedata.io.bvh import BvhClip, read_bvh, write_bvh
+from dancedata.io.smpl_model import load_smpl_model
 from dancedata.pipeline.featurize import FeaturizeOptions
 from dancedata.pipeline.featurize import featurize as run_featurize
 from dancedata.smpl import SMPL_PARENTS
-from dancedata.smpl_model import load_smpl_model
 from dancedata.store.reader import VersionReader
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli

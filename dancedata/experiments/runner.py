@@ -165,7 +165,7 @@ def _fid_units(ev: Evaluated, data: SplitData, unit: str) -> np.ndarray:
 
 def _score_fid(ev: Evaluated, data: SplitData, config: ExperimentConfig, model: Any,
                kinds: list[str]) -> dict[str, dict[str, Any]]:  # fmt: skip
-    from dancedata.smpl_model import smpl_joint_positions
+    from dancedata.compute.smpl_joints import smpl_joint_positions
 
     m = config.data["metrics"]
     rec = ev.reconstruction
@@ -194,7 +194,7 @@ def _score_fid(ev: Evaluated, data: SplitData, config: ExperimentConfig, model: 
 
 def _smpl_model(config: ExperimentConfig, override: str | Path | None) -> tuple[Any, str | None]:
     """(model, None) or (None, reason the FID metrics cannot run)."""
-    from dancedata.smpl_model import cached_smpl_model
+    from dancedata.io.smpl_model import cached_smpl_model
 
     path = Path(override) if override else config.smpl_model_path()
     if path is None:

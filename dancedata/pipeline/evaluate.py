@@ -132,7 +132,7 @@ def _gt_side(
         euler = axis_angle_euler(aa, order)
     positions = None
     if model is not None:
-        from dancedata.smpl_model import smpl_joint_positions
+        from dancedata.compute.smpl_joints import smpl_joint_positions
 
         positions = smpl_joint_positions(model, aa, trans)
     elif "motion/positions" in names:
@@ -197,7 +197,7 @@ def _adapt(gen: dict[str, Any], options: EvaluateOptions, fps: float) -> dict[st
 
 def _gen_positions(gen: dict[str, Any], model: Any) -> tuple[np.ndarray | None, str | None]:
     if model is not None and gen["axis_angle"] is not None:
-        from dancedata.smpl_model import smpl_joint_positions
+        from dancedata.compute.smpl_joints import smpl_joint_positions
 
         return smpl_joint_positions(model, gen["axis_angle"], gen["trans"]), None
     positions = gen["positions"]
@@ -441,7 +441,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
     model = None
     model_id = None
     if options.smpl_model:
-        from dancedata.smpl_model import cached_smpl_model
+        from dancedata.io.smpl_model import cached_smpl_model
 
         model = cached_smpl_model(options.smpl_model)
         model_id = {

@@ -166,8 +166,8 @@ def _rest_offsets(
     skel_attrs: dict[str, Any], smpl_model: str | Path | None
 ) -> tuple[np.ndarray, str]:
     """Rest OFFSETs (metres) of a skeleton without a channel layout, and their source."""
+    from dancedata.io.smpl_model import SMPL_MODEL_ENV, cached_smpl_model
     from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS, SMPL_REST_OFFSETS_M
-    from dancedata.smpl_model import SMPL_MODEL_ENV, cached_smpl_model
 
     n = len(skel_attrs["joints"])
     if skel_attrs.get("offsets") is not None:

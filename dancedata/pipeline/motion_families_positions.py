@@ -2,7 +2,7 @@
 
 * SMPL-24 stores (AIST++): the rest joints of an SMPL model file (``--smpl-model`` or
   ``$DANCEDATA_SMPL_MODEL``; betas 0, as AIST++ has none) posed by ``axis_angle`` and moved by
-  ``trans`` — see :mod:`dancedata.smpl_model`. No model ships with dancedata (licence); without
+  ``trans`` — see :mod:`dancedata.io.smpl_model`. No model ships with dancedata (licence); without
   one the family stops with a message saying where to get it.
 * Skeletons with offsets in their attrs (BVH stores): forward kinematics of ``axis_angle`` and
   ``trans`` over those offsets. BVH ingest already stores positions, so this is only needed to
@@ -23,7 +23,9 @@ import numpy as np
 
 from dancedata.compute.fk import forward_kinematics
 from dancedata.compute.rotations import axis_angle_to_rotmat
+from dancedata.compute.smpl_joints import smpl_joint_positions
 from dancedata.errors import InputError
+from dancedata.io.smpl_model import SMPL_MODEL_HELP, cached_smpl_model
 from dancedata.pipeline.motion_family_base import (
     ArraySpec,
     MotionBatch,
@@ -31,7 +33,6 @@ from dancedata.pipeline.motion_family_base import (
     MotionSettings,
 )
 from dancedata.smpl import SMPL_JOINTS
-from dancedata.smpl_model import SMPL_MODEL_HELP, cached_smpl_model, smpl_joint_positions
 
 __all__ = ["PositionsFamily", "smpl_model_identity"]
 

@@ -61,7 +61,7 @@ class MotionSettings:
 
     representations: tuple[str, ...] = REPRESENTATIONS
     euler_order: EulerOrder = "XYZ"
-    # SMPL model file for the positions family (see dancedata.smpl_model); the CLI's
+    # SMPL model file for the positions family (see dancedata.io.smpl_model); the CLI's
     # --smpl-model sets $DANCEDATA_SMPL_MODEL.
     smpl_model: str | None = field(default_factory=lambda: os.environ.get("DANCEDATA_SMPL_MODEL"))
 

@@ -3,7 +3,7 @@
 Sources, and the order ``source="auto"`` tries them in:
 
 1. ``smpl``: SMPL joints (24, metres, y-up) posed from ``motion/axis_angle`` and ``motion/trans``
-   with an SMPL model file (``smpl_model``; :mod:`dancedata.smpl_model`). Chosen first when a
+   with an SMPL model file (``smpl_model``; :mod:`dancedata.io.smpl_model`). Chosen first when a
    model is given and the store's skeleton is SMPL-24.
 2. ``keypoints3d``: AIST++ COCO-17 keypoints (metres, y-up; NaN where not triangulated).
 3. ``positions``: ``motion/positions`` (BVH forward kinematics at ingest or featurize's positions
@@ -175,10 +175,11 @@ def load_skeleton(
     trans = _slice(store, seq_id, "trans")
     if source == "smpl":
         if not smpl_model:
-            from dancedata.smpl_model import SMPL_MODEL_HELP
+            from dancedata.io.smpl_model import SMPL_MODEL_HELP
 
             raise InputError(f"drawing SMPL joints needs the SMPL model: {SMPL_MODEL_HELP}")
-        from dancedata.smpl_model import cached_smpl_model, smpl_joint_positions
+        from dancedata.compute.smpl_joints import smpl_joint_positions
+        from dancedata.io.smpl_model import cached_smpl_model
 
         model = cached_smpl_model(smpl_model)
         positions = smpl_joint_positions(model, axis_angle, trans)
@@ -249,7 +250,8 @@ def _smpl_generated(
         raise InputError(
             "this generated motion holds SMPL rotations; drawing it needs --smpl-model", path
         )
-    from dancedata.smpl_model import cached_smpl_model, smpl_joint_positions
+    from dancedata.compute.smpl_joints import smpl_joint_positions
+    from dancedata.io.smpl_model import cached_smpl_model
 
     poses = np.asarray(poses, dtype=np.float64).reshape(poses.shape[0], 24, 3)
     return smpl_joint_positions(cached_smpl_model(smpl_model), poses, trans)

@@ -1,4 +1,4 @@
-"""SMPL body model files: read the parts that give joint positions, and pose them.
+"""SMPL body model files: read the parts that give joint positions, and their rest joints.
 
 No SMPL model ships with dancedata: the SMPL licence does not allow redistribution. Register at
 https://smpl.is.tue.mpg.de and download a model (e.g. ``SMPL_NEUTRAL.pkl`` or an ``.npz``
@@ -7,8 +7,10 @@ export), then pass ``--smpl-model PATH`` or set ``$DANCEDATA_SMPL_MODEL``.
 What is read: ``J_regressor`` (J, V), ``v_template`` (V, 3), ``kintree_table`` (2, J) and,
 when present, ``shapedirs`` (V, 3, B). Joint positions follow SMPL without pose blend shapes
 (they do not move joints): rest joints ``J = J_regressor @ (v_template + shapedirs @ betas)``,
-then forward kinematics of the axis-angle pose about those joints, plus the translation. AIST++
-stores no betas, so betas default to zeros. Lengths are the model's (metres).
+then forward kinematics of the axis-angle pose about those joints, plus the translation
+(:func:`dancedata.compute.smpl_joints.smpl_joint_positions`; this module only reads the file,
+issue 15 item 3). AIST++ stores no betas, so betas default to zeros. Lengths are the model's
+(metres).
 
 File formats:
 
@@ -34,8 +36,6 @@ from typing import Any
 
 import numpy as np
 
-from dancedata.compute.fk import forward_kinematics
-from dancedata.compute.rotations import axis_angle_to_rotmat
 from dancedata.errors import InputError
 from dancedata.safe_pickle import _RestrictedUnpickler
 
@@ -45,7 +45,6 @@ __all__ = [
     "SmplModel",
     "cached_smpl_model",
     "load_smpl_model",
-    "smpl_joint_positions",
 ]
 
 SMPL_MODEL_ENV = "DANCEDATA_SMPL_MODEL"
@@ -101,25 +100,6 @@ class SmplModel:
         has_parent = parents >= 0
         offsets[has_parent] -= joints[parents[has_parent]]
         return offsets
-
-
-def smpl_joint_positions(
-    model: SmplModel,
-    axis_angle: np.ndarray,
-    trans: np.ndarray,
-    betas: np.ndarray | None = None,
-) -> np.ndarray:
-    """(F, J, 3) world joint positions in metres from (F, J, 3) axis-angle (radians, root
-    first) and (F, 3) translation (metres): SMPL's posed joints, ``J_posed + trans``."""
-    axis_angle = np.asarray(axis_angle, dtype=np.float64)
-    if axis_angle.ndim != 3 or axis_angle.shape[1:] != (model.n_joints, 3):
-        raise ValueError(f"need axis_angle (F, {model.n_joints}, 3), got {axis_angle.shape}")
-    trans = np.asarray(trans, dtype=np.float64).reshape(-1, 3)
-    offsets = model.joint_offsets(betas)
-    root = offsets[0] + trans  # the root rotates about its rest position, then translates
-    return forward_kinematics(
-        model.parents, offsets, axis_angle_to_rotmat(axis_angle), root_translation=root
-    )
 
 
 # --------------------------------------------------------------------------------------------
