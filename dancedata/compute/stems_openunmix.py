@@ -36,8 +36,11 @@ Whole tracks or chunks (:func:`separation_plan`): a track is separated in one pa
 ``openunmix`` separates a file, when the measured memory estimate (:func:`whole_track_mb`, about
 26 MB per second of stereo 44.1 kHz for umxhq) fits ``memory_mb``; otherwise in chunks that fit,
 each separated alone (its own LSTM context and Wiener filter) and blended by linear cross-fades
-over ``overlap_seconds`` (overlap-add, normalised by the summed weights). ``chunk_seconds``
-forces chunks of that length.
+over ``overlap_seconds`` (overlap-add, normalised by the summed weights). Chunks start on the
+whole track's Wiener windows (multiples of ``wiener_win_len`` × hop samples) when they are long
+enough, so each chunk's EM step sees the windows the whole-track pass sees: on a 41 s test track
+15 s chunks gave 42-49 dB against whole-track separation, unaligned ones 27-30 dB.
+``chunk_seconds`` forces chunks of that length.
 
 ``umxhq`` (MUSDB18-HQ) is the default; ``umxl`` is larger and better, but its weights are licensed
 for non-commercial use only (CC BY-NC-SA 4.0).
@@ -392,14 +395,29 @@ def separation_plan(
     }
 
 
-def chunk_bounds(n_samples: int, chunk: int, overlap: int) -> list[tuple[int, int]]:
+def chunk_bounds(n_samples: int, chunk: int, overlap: int, align: int = 1) -> list[tuple[int, int]]:
     """[start, stop) ranges of ``chunk`` samples, each overlapping the next by at least
-    ``overlap``, covering ``n_samples``; the last one ends at ``n_samples`` and is full length
-    when the signal is long enough (a short tail would starve the network of context)."""
+    ``overlap``, covering ``n_samples``.
+
+    ``align`` 1: the last one ends at ``n_samples`` and is full length when the signal is long
+    enough (a short tail would starve the network of context). ``align`` > 1: every start is a
+    multiple of ``align`` (the step is the largest multiple of ``align`` that keeps the overlap,
+    so ``chunk - overlap >= align`` is required) and the last chunk may be shorter; with
+    ``align`` = Wiener window × hop, each chunk's Wiener windows are those of the whole track.
+    """
     if chunk <= overlap or overlap < 0:
         raise InputError(f"chunk ({chunk} samples) must be longer than its overlap ({overlap})")
     if n_samples <= chunk:
         return [(0, n_samples)]
+    if align > 1:
+        if chunk - overlap < align:
+            raise InputError(
+                f"chunk {chunk} minus overlap {overlap} is under the alignment {align}"
+            )
+        step = (chunk - overlap) // align * align
+        starts = list(range(0, n_samples - overlap, step))
+        bounds = [(start, min(start + chunk, n_samples)) for start in starts]
+        return bounds[: next(i for i, (_, stop) in enumerate(bounds) if stop == n_samples) + 1]
     starts = list(range(0, n_samples - chunk, chunk - overlap)) + [n_samples - chunk]
     return [(start, start + chunk) for start in starts]
 
@@ -416,7 +434,7 @@ def crossfade_weights(length: int, overlap: int, first: bool, last: bool) -> np.
 
 
 def run_chunked(
-    separator: Any, audio: np.ndarray, chunk: int, overlap: int, device: str
+    separator: Any, audio: np.ndarray, chunk: int, overlap: int, device: str, align: int = 1
 ) -> np.ndarray:
     """Separator output for (channels, samples) model-rate audio, averaged over the channels:
     (stems, samples) float32, stems in ``separator.target_models`` order.
@@ -433,13 +451,15 @@ def run_chunked(
     """
     torch = _import_torch()
     n_samples = audio.shape[-1]
-    bounds = chunk_bounds(n_samples, chunk, overlap)
+    bounds = chunk_bounds(n_samples, chunk, overlap, align)
     out = np.zeros((len(separator.target_models), n_samples), dtype=np.float32)
     total = np.zeros(n_samples, dtype=np.float32)
     with torch.inference_mode():
         for i, (start, stop) in enumerate(bounds):
-            piece = torch.as_tensor(audio[None, :, start:stop], dtype=torch.float32, device=device)
-            estimate = separator(piece)[0].detach().cpu().numpy()
+            short = max(0, int(separator.stft.n_fft) - (stop - start))  # STFT reflect padding
+            piece = np.pad(audio[None, :, start:stop], ((0, 0), (0, 0), (0, short)))
+            piece = torch.as_tensor(piece, dtype=torch.float32, device=device)
+            estimate = separator(piece)[0].detach().cpu().numpy()[..., : stop - start]
             if not np.all(np.isfinite(estimate)) and separator.niter > 0:
                 estimate = _without_em(separator, piece)
             mono = estimate.astype(np.float64).mean(axis=1)
@@ -543,11 +563,18 @@ def separate_channels(
         memory_mb=memory_mb,
     )
     overlap = int(round(overlap_seconds * model_sr))
+    align = 1
     if plan["method"] == "whole_track":
         chunk = fed.shape[-1] + overlap + 1
     else:
         chunk = int(round(plan["chunk_seconds"] * model_sr))
-    estimates = run_chunked(separator, fed, chunk, overlap, device)
+        # Chunk starts on the whole track's Wiener windows (wiener_win_len frames), when the
+        # chunks are long enough; else on STFT frames.
+        windows = (wiener_win_len or 0) * stft["n_hop"]
+        align = windows if windows and chunk - overlap >= windows else stft["n_hop"]
+        plan["aligned_to"] = "wiener_windows" if align == windows else "stft_frames"
+        plan["step_seconds"] = (chunk - overlap) // align * align / model_sr
+    estimates = run_chunked(separator, fed, chunk, overlap, device, align)
     plan.update(
         input_sr=float(sr),
         input_channels=int(audio.shape[0]),

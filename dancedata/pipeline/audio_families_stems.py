@@ -46,7 +46,8 @@ OPENUNMIX_SEPARATION: dict[str, str] = {
     "channels": "the file's own: mono duplicated to the model's 2, only the first 2 of more "
     "(as openunmix.utils.preprocess)",
     "chunking": "whole_track when the estimated peak memory fits memory_mb (and chunk_seconds is "
-    "null), else overlap_add_crossfade: chunks separated alone, linear cross-fades over "
+    "null), else overlap_add_crossfade: chunks separated alone, starting on the whole track's "
+    "Wiener windows (wiener_win_len x hop samples) when long enough, linear cross-fades over "
     "overlap_seconds",
     "output": "per stem the mean of its channels, resampled from the model rate to the feature "
     "rate with config.audio.res_type and fitted to the mix's length",
