@@ -143,7 +143,8 @@ def test_long_span_is_refused_before_decoding_unless_allowed(tmp_path: Path) -> 
 
 
 def test_peak_memory_of_an_hour_of_flac_is_that_of_the_span(tmp_path: Path) -> None:
-    """Peak RSS of featurize in a subprocess that reports its own ru_maxrss: decoding the whole
+    """Peak RSS of featurize in a subprocess that reports its own VmHWM (not ru_maxrss, which
+    survives exec and would include pytest's own peak): decoding the whole
     hour at 44.1 kHz alone takes 0.64 GB (FACT alone peaked at 3.8 GB before the span was
     bounded); the 40 s span keeps it near the interpreter's own ~0.5 GB."""
     store = store_with(tmp_path, silent_flac(tmp_path / "hour.flac", 3600.0))
@@ -153,7 +154,7 @@ def test_peak_memory_of_an_hour_of_flac_is_that_of_the_span(tmp_path: Path) -> N
         "sys.argv = ['dancedata', 'featurize', sys.argv[1], '--stems', 'none', '-q',"
         " '--no-cache']\n"
         "try:\n    main()\nexcept SystemExit as exc:\n    assert not exc.code, exc.code\n"
-        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n"
+        "print(int(open('/proc/self/status').read().split('VmHWM:')[1].split()[0]))\n"
     )
     proc = subprocess.run(
         [sys.executable, "-c", code, str(store)],
