@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import functools
 import json
 import os
 import secrets
 import socket
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -245,8 +246,19 @@ def _guard(root: Path) -> Iterator[None]:
         os.close(fd)  # closing releases the flock
 
 
-def remove_lock_if(root: Path, holder: dict[str, Any]) -> bool:
-    """Delete ``root/.lock`` if it still carries ``holder``'s token. True if deleted."""
+def _say(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def remove_lock_if(
+    root: Path, holder: dict[str, Any], before_delete: Callable[[], None] | None = None
+) -> bool:
+    """Delete ``root/.lock`` if it still carries ``holder``'s token. True if deleted.
+
+    ``before_delete`` runs under the guard just before the file goes, so a message it prints
+    ("took over a stale store lock") is in the log before the takeover, even if this process
+    is killed right after it.
+    """
     path = Path(root) / LOCK_FILE
     with _guard(Path(root)):
         try:
@@ -255,6 +267,8 @@ def remove_lock_if(root: Path, holder: dict[str, Any]) -> bool:
             return False
         if current is None or current.get("token") != holder.get("token"):
             return False
+        if before_delete is not None:
+            before_delete()
         with contextlib.suppress(FileNotFoundError):
             path.unlink()
         return True
@@ -312,12 +326,11 @@ class StoreLock:
                 continue  # released between our attempt and our look
             state = judge_holder(holder)
             if state.status == "stale":
-                if remove_lock_if(self.root, holder):
+                notice = f"took over a stale store lock: {describe_holder(holder)}; {state.reason}"
+                if remove_lock_if(
+                    self.root, holder, functools.partial(_say, notice)
+                ):
                     self.took_over.append(holder)
-                    print(
-                        f"took over a stale store lock: {describe_holder(holder)}; {state.reason}",
-                        file=sys.stderr,
-                    )
                 continue
             message = self._busy_message(holder, state)
             if not self.wait:
