@@ -105,11 +105,6 @@ KNOWN_VIOLATIONS: tuple[str, ...] = (
     # item 4: compute/stems becomes a package with its backends below it.
     "cycle: dancedata.compute.stems <-> dancedata.compute.stems_offline"
     " <-> dancedata.compute.stems_openunmix",
-    # item 3 (and item 2's one engine, which owns the result type): pipeline steps reuse the
-    # ingest result and its version note.
-    "sideways: dancedata.pipeline.featurize imports dancedata.ingest.result",
-    "sideways: dancedata.pipeline.keyframes imports dancedata.ingest.result",
-    "sideways: dancedata.pipeline.segment imports dancedata.ingest.result",
 )
 
 

@@ -42,7 +42,6 @@ from dancedata.ingest.aist_camera_inputs import (
 )
 from dancedata.ingest.aist_splits import split_rows
 from dancedata.ingest.locked import already_ingested, latest_version
-from dancedata.ingest.result import CommandResult
 from dancedata.io.aist import AistMotion, find_ignore_list, find_split_files, read_motion
 from dancedata.io.audio import audio_info, feature_frames, find_music, resampled_length
 from dancedata.io.music_file import file_stamp
@@ -50,6 +49,7 @@ from dancedata.progress import progress
 from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS
 from dancedata.store.arrays import FrameArrayWriter
 from dancedata.store.checksums import describe_input, fingerprint
+from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.writer import VersionWriter, hold_store_lock
 

@@ -44,12 +44,12 @@ from dancedata.ingest.bvh_arrays import SOURCE, BvhArrayStream
 from dancedata.ingest.bvh_inputs import DEFAULT_GLOB, BvhInput, resolve_inputs
 from dancedata.ingest.bvh_motion import BvhMotion, BvhSettings, process_bvh
 from dancedata.ingest.locked import already_ingested
-from dancedata.ingest.result import CommandResult
 from dancedata.ingest.run_state import IngestRun
 from dancedata.io.bvh_attrs import is_bvh_skeleton
 from dancedata.io.bvh_head import FPS_RANGE
 from dancedata.progress import progress
 from dancedata.store.checksums import fingerprint
+from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from dancedata.ingest.result import CommandResult
+from dancedata.store.command_result import CommandResult
 from dancedata.store.layout import StoreLayout
 from dancedata.store.writer import find_version_with_fingerprint
 

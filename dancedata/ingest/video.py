@@ -27,7 +27,6 @@ from typing import Any
 from dancedata._version import __version__
 from dancedata.errors import InputError
 from dancedata.ingest.locked import already_ingested, latest_version
-from dancedata.ingest.result import CommandResult
 from dancedata.ingest.run_state import IngestRun
 from dancedata.ingest.video_inputs import (
     VideoInputs,
@@ -40,6 +39,7 @@ from dancedata.ingest.video_poses import MASK_CODES, PoseSettings, VideoPoses, p
 from dancedata.progress import progress
 from dancedata.store.arrays import FrameArrayWriter
 from dancedata.store.checksums import describe_input, fingerprint
+from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.writer import VersionWriter, hold_store_lock
 

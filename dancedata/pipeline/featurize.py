@@ -27,7 +27,6 @@ from dancedata.compute.motion_representations import KNOWN_REPRESENTATIONS, REPR
 from dancedata.errors import InputError, StoreError
 from dancedata.exec.executors import make_executor
 from dancedata.exec.units import Job, UnitReport, run_units
-from dancedata.ingest.result import CommandResult
 from dancedata.pipeline.audio_families import (
     FAMILIES,
     ArraySpec,
@@ -56,6 +55,7 @@ from dancedata.pipeline.music_inputs import (
 )
 from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter, create_checked_array
 from dancedata.store.checksums import fingerprint
+from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.fs import is_remote
 from dancedata.store.layout import StoreLayout, warn_once

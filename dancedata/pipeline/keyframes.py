@@ -33,8 +33,8 @@ from dancedata.experiments.keyframes import (
 )
 from dancedata.experiments.keyframes_dp import dp_keyframes_batch
 from dancedata.experiments.keyframes_peaks import DP, KEYFRAME_SOURCES, peak_keyframes_batch
-from dancedata.ingest.result import CommandResult
 from dancedata.store.checksums import fingerprint
+from dancedata.store.command_result import CommandResult
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
 from dancedata.store.writer import VersionWriter, already_done, hold_store_lock

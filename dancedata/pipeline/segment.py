@@ -10,8 +10,8 @@ from dancedata._version import __version__
 from dancedata.compute.downbeat import method_config
 from dancedata.compute.measures import measure_grid
 from dancedata.errors import InputError, StoreError
-from dancedata.ingest.result import CommandResult
 from dancedata.store.checksums import fingerprint
+from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout, warn_once
 from dancedata.store.reader import VersionReader
