@@ -18,7 +18,7 @@ import pytest
 import dancedata
 import dancedata.ingest.aist as aist_module
 import dancedata.pipeline.featurize as featurize_module
-from dancedata.exec import reads as reads_module
+from dancedata.ingest import resumable_reads as reads_module
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.pipeline.featurize import FeaturizeOptions, featurize
 from dancedata.pipeline.featurize_units import plan_motion_units

@@ -1,10 +1,11 @@
-"""``dancedata ingest aist``: AIST++ annotations and music into a new store version.
+"""The AIST++ ingest source (``dancedata ingest aist``): annotations and music as records for
+the ingest engine (:mod:`dancedata.ingest.engine`).
 
-Streams sequences (motion, keypoints3d, keypoints2d) into frame-concatenated arrays, so memory
-is bounded by one read batch (:mod:`dancedata.exec.reads`) and one chunk per array whatever the
-dataset size; then writes the sequences, music, cameras and splits tables (a few hundred bytes
-per sequence).
-Music is only described here (sample rate, length, feature frame range); featurize decodes it.
+One read task per sequence (motion, keypoints3d and keypoints2d pickles, read safely); the
+engine streams them into frame-concatenated arrays, so memory is bounded by one read batch and
+one chunk per array whatever the dataset size. Tables: sequences, music, splits and cameras (a
+few hundred bytes per sequence). Music is only described here (sample rate, length, feature
+frame range); featurize decodes it.
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from typing import Any
 
 import numpy as np
 
-from dancedata._version import __version__
 from dancedata.aist_names import (
     GENRES,
     SITUATIONS,
@@ -26,13 +26,12 @@ from dancedata.aist_names import (
     music_genre,
     parse_sequence_name,
 )
-from dancedata.errors import DancedataError, InputError
-from dancedata.exec.executors import make_executor
-from dancedata.exec.reads import ResumableReads
+from dancedata.errors import InputError
 from dancedata.ingest.aist_annotations import (
     ANNOTATION_KINDS,
-    AnnotationWriters,
     SequenceAnnotations,
+    annotation_arrays,
+    annotation_rows,
     read_annotations,
 )
 from dancedata.ingest.aist_camera_inputs import (
@@ -41,17 +40,26 @@ from dancedata.ingest.aist_camera_inputs import (
     find_camera_inputs,
 )
 from dancedata.ingest.aist_splits import split_rows
-from dancedata.ingest.locked import already_ingested, latest_version
+from dancedata.ingest.engine import ingest
+from dancedata.ingest.registry import register_source
+from dancedata.ingest.source import (
+    IngestPlan,
+    IngestTotals,
+    InputChecksums,
+    MusicTable,
+    ReadTask,
+    SequenceRecord,
+    SkipPolicy,
+    Source,
+    StoredArray,
+)
 from dancedata.io.aist import AistMotion, find_ignore_list, find_split_files, read_motion
 from dancedata.io.audio import audio_info, feature_frames, find_music, resampled_length
 from dancedata.io.music_file import file_stamp
 from dancedata.progress import progress
 from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS
-from dancedata.store.arrays import FrameArrayWriter
-from dancedata.store.checksums import describe_input, fingerprint
+from dancedata.store.checksums import describe_input
 from dancedata.store.command_result import CommandResult
-from dancedata.store.contract import build_table
-from dancedata.store.writer import VersionWriter, hold_store_lock
 
 AIST_FPS = 60.0
 AUDIO_HOP = 512
@@ -271,38 +279,6 @@ def _check_music_length(music_id: str, music_frames: int | None, n_frames: int, 
         )
 
 
-def _sequence_row(
-    name: SequenceName,
-    n_frames: int,
-    frame_start: int,
-    music_frames: int | None,
-    path: str,
-    checksums: dict[str, str],
-) -> dict[str, Any]:
-    """The contract columns of one sequence, and how its music covers it."""
-    return {
-        "seq_id": name.seq_id,
-        "source": "aistpp",
-        "genre": name.genre,
-        "situation": name.situation,
-        "camera": name.camera,
-        "dancer": name.dancer,
-        "music_id": name.music_id,
-        "choreo": name.choreo,
-        "bpm": music_bpm(name.music_id),
-        "fps": AIST_FPS,
-        "n_frames": n_frames,
-        "frame_start": frame_start,
-        "frame_stop": frame_start + n_frames,
-        "audio_offset": 0,
-        "audio_frames": 0 if music_frames is None else min(n_frames, music_frames),
-        "audio_truncated_frames": 0 if music_frames is None else max(0, music_frames - n_frames),
-        "music_missing": music_frames is None,
-        "path": path,
-        "sha256": checksums[path],
-    }
-
-
 def _used_music(music_rows: list[dict[str, Any]], used: set[str]) -> list[dict[str, Any]]:
     """Music rows of the tracks the stored sequences use, frame ranges re-packed from 0."""
     table = [dict(r) for r in music_rows if r["music_id"] in used]
@@ -312,16 +288,6 @@ def _used_music(music_rows: list[dict[str, Any]], used: set[str]) -> list[dict[s
         row["frame_start"], row["frame_stop"] = start, start + n
         start += n
     return table
-
-
-def _annotations_missing(rows: list[dict[str, Any]]) -> dict[str, int]:
-    """Per annotation kind (and music), how many stored sequences lack it."""
-    return {
-        "keypoints3d": sum(not r["has_keypoints3d"] for r in rows),
-        "keypoints2d": sum(not r["has_keypoints2d"] for r in rows),
-        "cameras": sum(r["camera_setting"] is None for r in rows),
-        "music": sum(bool(r["music_missing"]) for r in rows),
-    }
 
 
 def _sequence_files(inventory: _Inventory, seq_id: str) -> tuple[str, str | None, str | None]:
@@ -338,7 +304,7 @@ def _sequence_files(inventory: _Inventory, seq_id: str) -> tuple[str, str | None
 def _read_sequence(
     files: tuple[str, str | None, str | None],
 ) -> tuple[AistMotion, SequenceAnnotations]:
-    """One resumable read unit item: a sequence's motion and keypoint pickles, checked."""
+    """One read task item: a sequence's motion and keypoint pickles, read and checked."""
     motion, kp3d, kp2d = files
     seq = read_motion(motion)
     keypoints = read_annotations(
@@ -350,137 +316,155 @@ def _read_sequence(
     return seq, keypoints
 
 
-def ingest_aist(store: str | Path, raw: str | Path, options: AistIngestOptions) -> CommandResult:
-    """Ingest the AIST++ annotation root ``raw`` into a new version of ``store``."""
-    raw = Path(raw)
-    if not raw.is_dir():
-        raise InputError("no such directory", raw)
-    inventory = _inventory(raw, options)
-    inputs = _inputs(inventory)
-    config = options.config()
-    fp = fingerprint("ingest aist", config, [i["sha256"] for i in inputs], __version__)
-    ingested = already_ingested(store, fp)  # (asked again under the lock)
-    if ingested is not None:
-        return ingested
-    music_rows, music_frames, unreadable_music = _music_rows(inventory, options.on_error)
-    checksums = {i["path"]: i["sha256"] for i in inputs}
-    for row in music_rows:
-        row["sha256"] = checksums[row["path"]]
+def _annotations_missing(records: list[SequenceRecord]) -> dict[str, int]:
+    """Per annotation kind (and music), how many stored sequences lack it."""
+    return {
+        "keypoints3d": sum(not r.columns["has_keypoints3d"] for r in records),
+        "keypoints2d": sum(not r.columns["has_keypoints2d"] for r in records),
+        "cameras": sum(r.columns["camera_setting"] is None for r in records),
+        "music": sum(r.music_key is None for r in records),
+    }
 
-    # No lost update: the items below are entered in order, so the parent is read once the
-    # lock is held, and the result is looked for again under it (dancedata.ingest.locked).
-    with (
-        hold_store_lock(store, wait=options.wait_for_lock, create=True) as lock,
-        make_executor(options.workers) as executor,
-        VersionWriter(
-            store,
-            command="ingest aist",
-            config=config,
-            fingerprint=fp,
-            inputs=inputs,
-            parent=latest_version(store),
-            carry_over=False,
-            wait_for_lock=options.wait_for_lock,
-            stage="ingest",
-            resumable=True,
-            lock=lock,
-        ) as version,
-    ):
-        ingested = already_ingested(store, fp)  # by a writer this one waited for
-        if ingested is not None:
-            return ingested
-        # resume (issue 8.1): keep the reads a killed run finished, rebuild every output.
-        version.reset_outputs()
-        version.mark_prepared()
-        for item in inventory.skipped:
-            version.skip(item["path"], item["error"])
-        for error in unreadable_music.values():
-            version.skip(error.path or "", error.problem)
-        root = version.zarr_group()
-        motion = root.require_group("motion")
-        root.require_group("audio")
-        motion.attrs.update(
-            {
-                "fps": AIST_FPS,
-                "up_axis": "y",
-                "skeleton": {
-                    "name": "smpl24",
-                    "joints": list(SMPL_JOINTS),
-                    "parents": list(SMPL_PARENTS),
-                },
-            }
-        )
-        trans_writer = FrameArrayWriter(motion, "trans", (3,), np.float32, attrs={"units": "m"})
-        aa_writer = FrameArrayWriter(
-            motion, "axis_angle", (24, 3), np.float32, attrs={"units": "rad"}
-        )
-        annotations = AnnotationWriters(
-            motion,
+
+@register_source("aist")
+class AistSource(Source):
+    """AIST++ annotation root ``raw`` (motions/, keypoints3d/, keypoints2d/, cameras/,
+    splits/, ignore list) and its music, as engine records (:mod:`dancedata.ingest.source`)."""
+
+    command = "ingest aist"
+    writes_empty_music_table = True
+
+    def __init__(self, raw: str | Path, options: AistIngestOptions) -> None:
+        self.raw = Path(raw)
+        self.options = options
+        self.on_error = options.on_error
+
+    # -- before the version opens ----------------------------------------------------------
+    def plan(self, checksums: InputChecksums, skips: SkipPolicy) -> IngestPlan:
+        if not self.raw.is_dir():
+            raise InputError("no such directory", self.raw)
+        inventory = self.inventory = _inventory(self.raw, self.options)
+        skips.skipped.extend(inventory.skipped)
+        inputs = _inputs(inventory)
+        self.checksums = {i["path"]: i["sha256"] for i in inputs}
+        self.names = {str(inventory.motion_paths[n.seq_id]): n for n in inventory.names}
+        self.stored_annotations = annotation_arrays(
             keypoints3d=bool(inventory.keypoints3d_paths),
             keypoints2d=bool(inventory.keypoints2d_paths),
         )
-        rows: list[dict[str, Any]] = []
-        frame = 0
-        reads = ResumableReads(
-            version.build_area(),
-            "sequences",
-            [_sequence_files(inventory, name.seq_id) for name in inventory.names],
-            _read_sequence,
-            executor=executor,
-            desc="read sequences",
+        return IngestPlan(
+            config=self.options.config(),
+            fingerprint_keys=[i["sha256"] for i in inputs],
+            inputs=inputs,
+            tasks=[
+                ReadTask(
+                    str(inventory.motion_paths[n.seq_id]), _sequence_files(inventory, n.seq_id)
+                )
+                for n in inventory.names
+            ],
+            read=_read_sequence,
+            task_kind="sequences",
+            read_desc="read sequences",
+            sequences_desc="ingest sequences",
+            sequences_unit="seq",
+            workers=self.options.workers,
+            wait_for_lock=self.options.wait_for_lock,
+            empty_error=InputError("every motion was skipped; nothing to ingest", self.raw),
         )
-        # reads first: it runs the read units (their own bar) before yielding anything
-        for loaded, name in zip(
-            reads, progress(inventory.names, "ingest sequences", unit="seq"), strict=True
-        ):
-            path = inventory.motion_paths[name.seq_id]
-            try:
-                if name.music_id in unreadable_music:
-                    bad = unreadable_music[name.music_id]
-                    raise InputError(f"its music {name.music_id} is unreadable ({bad.path})", path)
-                seq, keypoints = loaded.get()
-                music_available = music_frames.get(name.music_id)
-                _check_music_length(name.music_id, music_available, seq.n_frames, path)
-            except DancedataError as exc:
-                if options.on_error != "skip":
-                    raise
-                version.skip(exc.path or path, exc.problem)
-                continue
-            trans_writer.append(seq.trans_m)
-            aa_writer.append(seq.axis_angle)
-            annotation_columns = annotations.append(keypoints, seq.n_frames)
-            rows.append(
-                _sequence_row(name, seq.n_frames, frame, music_available, str(path), checksums)
-                | {"smpl_scaling": seq.scaling, "smpl_loss": seq.loss}
-                | {"camera_setting": inventory.cameras.setting_of.get(name.seq_id)}
-                | annotation_columns
-            )
-            frame += seq.n_frames
-        trans_writer.close()
-        aa_writer.close()
-        annotations.close()
-        if not rows:
-            raise InputError("every motion was skipped; nothing to ingest", raw)
-        present = {r["seq_id"] for r in rows}
-        splits, split_counts = split_rows(inventory.split_files, inventory.ignore_file, present)
-        music_table = _used_music(music_rows, {r["music_id"] for r in rows})
-        used_settings = {r["camera_setting"] for r in rows if r["camera_setting"]}
-        camera_table = cameras_table_rows(inventory.cameras, used_settings, checksums)
-        version.write_table("sequences", build_table("sequences", rows))
-        version.write_table("music", build_table("music", music_table))
-        version.write_table("splits", build_table("splits", splits))
-        if camera_table:
-            version.write_table("cameras", build_table("cameras", camera_table))
-        counts = {
-            "sequences": len(rows),
-            "frames": frame,
-            "music": len(music_table),
-            "music_missing": sum(r["music_missing"] for r in rows),
-            "camera_settings": len(used_settings),
-            "annotations_missing": _annotations_missing(rows),
-            "skipped": len(version.skipped),
-            "splits": split_counts,
-            **reads.counts(),
+
+    def prepare(self, checksums: InputChecksums, skips: SkipPolicy) -> None:
+        """Read the music headers (frame counts); unreadable tracks skip their sequences."""
+        self.music_rows, self.music_frames, self.unreadable_music = _music_rows(
+            self.inventory, self.options.on_error
+        )
+        for row in self.music_rows:
+            row["sha256"] = self.checksums[row["path"]]
+        for error in self.unreadable_music.values():
+            skips.skipped.append({"path": str(error.path or ""), "error": error.problem})
+
+    # -- records ---------------------------------------------------------------------------
+    def array_specs(self, first: SequenceRecord | None = None) -> list[StoredArray]:
+        return [
+            StoredArray("trans", (3,), np.float32, attrs={"units": "m"}),
+            StoredArray("axis_angle", (24, 3), np.float32, attrs={"units": "rad"}),
+            *self.stored_annotations,
+        ]
+
+    def group_attrs(self) -> dict[str, dict[str, Any]]:
+        skeleton = {"name": "smpl24", "joints": list(SMPL_JOINTS), "parents": list(SMPL_PARENTS)}
+        return {"motion": {"fps": AIST_FPS, "up_axis": "y", "skeleton": skeleton}}
+
+    def check_task(self, task: ReadTask) -> None:
+        name = self.names[task.path]
+        if name.music_id in self.unreadable_music:
+            bad = self.unreadable_music[name.music_id]
+            raise InputError(f"its music {name.music_id} is unreadable ({bad.path})", task.path)
+
+    def accept(self, task: ReadTask, value: Any) -> SequenceRecord:
+        name = self.names[task.path]
+        seq, keypoints = value
+        music_available = self.music_frames.get(name.music_id)
+        _check_music_length(name.music_id, music_available, seq.n_frames, Path(task.path))
+        annotation_arrays_, annotation_columns = annotation_rows(
+            keypoints, seq.n_frames, self.stored_annotations
+        )
+        return SequenceRecord(
+            seq_id=name.seq_id,
+            source="aistpp",
+            path=task.path,
+            sha256=self.checksums[task.path],
+            fps=AIST_FPS,
+            n_frames=seq.n_frames,
+            arrays={"trans": seq.trans_m, "axis_angle": seq.axis_angle, **annotation_arrays_},
+            genre=name.genre,
+            situation=name.situation,
+            dancer=name.dancer,
+            choreo=name.choreo,
+            music_key=None if music_available is None else name.music_id,
+            music_id=name.music_id,
+            bpm=music_bpm(name.music_id),
+            name_columns={"camera": name.camera},
+            columns={
+                "smpl_scaling": seq.scaling,
+                "smpl_loss": seq.loss,
+                "camera_setting": self.inventory.cameras.setting_of.get(name.seq_id),
+                **annotation_columns,
+            },
+        )
+
+    # -- tables ----------------------------------------------------------------------------
+    def music_table(self, records: list[SequenceRecord]) -> MusicTable:
+        rows = _used_music(self.music_rows, {r.music_id for r in records if r.music_id})
+        return MusicTable(rows, {row["music_id"]: row for row in rows})
+
+    def tables(
+        self, records: list[SequenceRecord], music: MusicTable
+    ) -> dict[str, list[dict[str, Any]]]:
+        present = {r.seq_id for r in records}
+        inventory = self.inventory
+        splits, self.split_counts = split_rows(
+            inventory.split_files, inventory.ignore_file, present
+        )
+        self.used_settings = {
+            r.columns["camera_setting"] for r in records if r.columns["camera_setting"]
         }
-        name = version.commit(counts=counts)
-        return CommandResult(version=name, created=True, counts=counts, skipped=version.skipped)
+        cameras = cameras_table_rows(inventory.cameras, self.used_settings, self.checksums)
+        return {"splits": splits, **({"cameras": cameras} if cameras else {})}
+
+    def counts(self, records: list[SequenceRecord], totals: IngestTotals) -> dict[str, Any]:
+        return {
+            "sequences": totals.sequences,
+            "frames": totals.frames,
+            "music": totals.music,
+            "music_missing": sum(r.music_key is None for r in records),
+            "camera_settings": len(self.used_settings),
+            "annotations_missing": _annotations_missing(records),
+            "skipped": totals.skipped,
+            "splits": self.split_counts,
+            **totals.read_counts,
+        }
+
+
+def ingest_aist(store: str | Path, raw: str | Path, options: AistIngestOptions) -> CommandResult:
+    """Ingest the AIST++ annotation root ``raw`` into a new version of ``store``."""
+    return ingest(store, AistSource(raw, options))

@@ -1,4 +1,4 @@
-"""Stream AIST++ keypoint annotations into frame-concatenated arrays next to the motion.
+"""AIST++ keypoint annotations: read and checked per sequence, and their rows in the stored arrays.
 
 Which annotation kinds the store gets is decided once from the files on disk: a kind is stored
 when at least one selected sequence has a file for it. Sequences without that file get NaN
@@ -19,11 +19,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from dancedata.errors import InputError
+from dancedata.ingest.source import StoredArray
 from dancedata.io.aist import MAX_ABS_KEYPOINTS3D_M, MAX_ABS_PIXELS, check_stored
 from dancedata.io.aist_keypoints import (
     N_KEYPOINTS,
@@ -34,10 +35,6 @@ from dancedata.io.aist_keypoints import (
     read_keypoints3d,
 )
 from dancedata.smpl import COCO17_KEYPOINTS, COCO17_PARENTS
-from dancedata.store.arrays import FrameArrayWriter
-
-if TYPE_CHECKING:
-    import zarr
 
 ANNOTATION_KINDS: tuple[str, ...] = ("keypoints3d", "keypoints2d", "cameras")
 VIEW_NAMES: tuple[str, ...] = tuple(f"c{i:02d}" for i in range(1, N_VIEWS + 1))
@@ -103,23 +100,21 @@ def read_annotations(
     return SequenceAnnotations(kp3d, kp2d)
 
 
-class AnnotationWriters:
-    """One streaming writer per stored keypoint array; NaN rows where a sequence lacks a kind."""
-
-    def __init__(self, motion: zarr.Group, keypoints3d: bool, keypoints2d: bool) -> None:
-        self.writers: dict[str, FrameArrayWriter] = {}
-        skeleton = {
-            "name": "coco17",
-            "joints": list(COCO17_KEYPOINTS),
-            "parents": list(COCO17_PARENTS),
-        }
-        if keypoints3d:
-            for name, note in (
-                ("keypoints3d", "triangulated"),
-                ("keypoints3d_optim", "after AIST++ bundle optimisation"),
-            ):
-                self.writers[name] = FrameArrayWriter(
-                    motion,
+def annotation_arrays(keypoints3d: bool, keypoints2d: bool) -> list[StoredArray]:
+    """The stored keypoint arrays, for the kinds some selected sequence has a file for."""
+    skeleton = {
+        "name": "coco17",
+        "joints": list(COCO17_KEYPOINTS),
+        "parents": list(COCO17_PARENTS),
+    }
+    specs: list[StoredArray] = []
+    if keypoints3d:
+        for name, note in (
+            ("keypoints3d", "triangulated"),
+            ("keypoints3d_optim", "after AIST++ bundle optimisation"),
+        ):
+            specs.append(
+                StoredArray(
                     name,
                     (N_KEYPOINTS, 3),
                     np.float32,
@@ -127,9 +122,10 @@ class AnnotationWriters:
                     compressors=keypoint_compressors(),
                     chunks_per_write=CHUNKS_PER_WRITE,
                 )
-        if keypoints2d:
-            self.writers["keypoints2d"] = FrameArrayWriter(
-                motion,
+            )
+    if keypoints2d:
+        specs.append(
+            StoredArray(
                 "keypoints2d",
                 (N_VIEWS, N_KEYPOINTS, 3),
                 np.float32,
@@ -144,8 +140,9 @@ class AnnotationWriters:
                 compressors=keypoint_compressors(),
                 chunks_per_write=CHUNKS_PER_WRITE,
             )
-            self.writers["det_scores"] = FrameArrayWriter(
-                motion,
+        )
+        specs.append(
+            StoredArray(
                 "det_scores",
                 (N_VIEWS,),
                 np.float32,
@@ -153,30 +150,33 @@ class AnnotationWriters:
                 compressors=keypoint_compressors(),
                 chunks_per_write=CHUNKS_PER_WRITE,
             )
-
-    def append(self, annotations: SequenceAnnotations, n_frames: int) -> dict[str, Any]:
-        """Append one sequence's rows (NaN where absent); returns its sequences-table columns."""
-        kp3d, kp2d = annotations.keypoints3d, annotations.keypoints2d
-        values: dict[str, np.ndarray | None] = {
-            "keypoints3d": None if kp3d is None else kp3d.keypoints3d,
-            "keypoints3d_optim": None if kp3d is None else kp3d.keypoints3d_optim,
-            "keypoints2d": None if kp2d is None else kp2d.keypoints2d,
-            "det_scores": None if kp2d is None else kp2d.det_scores,
-        }
-        for name, writer in self.writers.items():
-            block = values[name]
-            if block is None:
-                block = np.full((n_frames, *writer.row_shape), np.nan, dtype=np.float32)
-            writer.append(block)
-        nan_frames = (
-            int(np.isnan(kp3d.keypoints3d).any(axis=(1, 2)).sum()) if kp3d is not None else None
         )
-        return {
-            "has_keypoints3d": kp3d is not None,
-            "has_keypoints2d": kp2d is not None,
-            "keypoints3d_nan_frames": nan_frames,
-        }
+    return specs
 
-    def close(self) -> None:
-        for writer in self.writers.values():
-            writer.close()
+
+def annotation_rows(
+    annotations: SequenceAnnotations, n_frames: int, stored: list[StoredArray]
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """One sequence's rows of the ``stored`` keypoint arrays (NaN where its file is absent),
+    and its sequences-table columns."""
+    kp3d, kp2d = annotations.keypoints3d, annotations.keypoints2d
+    values: dict[str, np.ndarray | None] = {
+        "keypoints3d": None if kp3d is None else kp3d.keypoints3d,
+        "keypoints3d_optim": None if kp3d is None else kp3d.keypoints3d_optim,
+        "keypoints2d": None if kp2d is None else kp2d.keypoints2d,
+        "det_scores": None if kp2d is None else kp2d.det_scores,
+    }
+    rows: dict[str, np.ndarray] = {}
+    for spec in stored:
+        block = values[spec.name]
+        if block is None:
+            block = np.full((n_frames, *spec.row_shape), np.nan, dtype=np.float32)
+        rows[spec.name] = block
+    nan_frames = (
+        int(np.isnan(kp3d.keypoints3d).any(axis=(1, 2)).sum()) if kp3d is not None else None
+    )
+    return rows, {
+        "has_keypoints3d": kp3d is not None,
+        "has_keypoints2d": kp2d is not None,
+        "keypoints3d_nan_frames": nan_frames,
+    }

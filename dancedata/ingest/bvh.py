@@ -39,11 +39,11 @@ from dancedata._version import __version__
 from dancedata.compute.bvh_units import parse_units
 from dancedata.errors import DancedataError, InputError
 from dancedata.exec.executors import make_executor
-from dancedata.exec.reads import ResumableReads
 from dancedata.ingest.bvh_arrays import SOURCE, BvhArrayStream
 from dancedata.ingest.bvh_inputs import DEFAULT_GLOB, BvhInput, resolve_inputs
 from dancedata.ingest.bvh_motion import BvhMotion, BvhSettings, process_bvh
 from dancedata.ingest.locked import already_ingested
+from dancedata.ingest.resumable_reads import ResumableReads
 from dancedata.ingest.run_state import IngestRun
 from dancedata.io.bvh_attrs import is_bvh_skeleton
 from dancedata.io.bvh_head import FPS_RANGE

@@ -1,0 +1,244 @@
+"""The ingest engine: one run of any source (:mod:`dancedata.ingest.source`) into a new version.
+
+``ingest(store, source)`` does, for every source, in this order:
+
+1. ``source.plan(checksums, skips)``: inputs, their checksums and the read tasks;
+2. the fingerprint (command, config, the plan's lines, package version); a committed version
+   carrying it means nothing to do (asked before the lock when the source allows, and again
+   under it: no lost update, see :mod:`dancedata.ingest.locked`);
+3. the store lock (``create_store``), ``source.under_lock`` (``--append``: the parent, more
+   fingerprint lines), ``source.prepare`` (music headers, tempo);
+4. a resumable :class:`~dancedata.store.writer.VersionWriter` (its parent: the latest version
+   now); the read tasks run on the executor (serial, process pool or Dask) as resumable batches
+   (:mod:`dancedata.ingest.resumable_reads`): a killed run's finished batches are not read
+   again;
+5. in input order, ``source.check_task(task)`` then ``source.accept(task, value)`` → a
+   :class:`SequenceRecord`; a DancedataError from either or from the read fails the run or,
+   with ``--on-error skip``, is recorded in the manifest's ``skipped`` list; the record's
+   arrays are appended to the version's frame-concatenated arrays (declared from the first
+   record by ``source.array_specs``), and its ``frame_start`` is the number of frames before
+   it;
+6. the tables: ``sequences`` (the source's kept rows, then :func:`sequence_row` of each record,
+   the one place a sequence row is built), ``music`` (``source.music_table``), then the
+   source's other tables (splits, cameras), and ``source.counts``; then the commit.
+
+Stored bytes depend only on the inputs and the settings, never on the number of workers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dancedata._version import __version__
+from dancedata.errors import DancedataError
+from dancedata.exec.executors import make_executor
+from dancedata.ingest.locked import already_ingested, latest_version
+from dancedata.ingest.resumable_reads import ResumableReads
+from dancedata.ingest.source import (
+    FrameArrayTarget,
+    IngestPlan,
+    IngestTotals,
+    InputChecksums,
+    SequenceRecord,
+    SkipPolicy,
+    Source,
+    StoredArray,
+)
+from dancedata.progress import progress
+from dancedata.store.arrays import FrameArrayWriter
+from dancedata.store.checksums import fingerprint
+from dancedata.store.command_result import CommandResult
+from dancedata.store.contract import build_table
+from dancedata.store.writer import VersionWriter, hold_store_lock
+
+__all__ = ["FrameArrays", "ingest", "sequence_row"]
+
+
+class FrameArrays(FrameArrayTarget):
+    """The version's frame-concatenated arrays, one streaming writer per declared array."""
+
+    def __init__(self, version: VersionWriter) -> None:
+        self.root = version.zarr_group()
+        self.root.require_group("motion")
+        self.root.require_group("audio")
+        self.writers: dict[str, FrameArrayWriter] = {}
+        self.declared = False
+        self.frames = 0
+
+    def declare(self, specs: Sequence[StoredArray]) -> None:
+        """Create the arrays (empty, in this order)."""
+        for spec in specs:
+            self.writers[spec.name] = FrameArrayWriter(
+                self.root.require_group(spec.group),
+                spec.name,
+                spec.row_shape,
+                spec.dtype,
+                attrs=spec.attrs,
+                compressors=spec.compressors,
+                chunks_per_write=spec.chunks_per_write,
+            )
+        self.declared = True
+
+    def append(self, arrays: dict[str, np.ndarray]) -> None:
+        """Append one block of rows to every declared array (all the same length)."""
+        lengths = set()
+        for name, writer in self.writers.items():
+            if name not in arrays:
+                raise ValueError(f"record lacks the declared array {name!r}")
+            writer.append(arrays[name])
+            lengths.add(len(arrays[name]))
+        if len(lengths) > 1:
+            raise ValueError(f"arrays of one record differ in length: {sorted(lengths)}")
+        self.frames += lengths.pop() if lengths else 0
+
+    def close(self, group_attrs: dict[str, dict[str, Any]]) -> None:
+        for writer in self.writers.values():
+            writer.close()
+        for group, attrs in group_attrs.items():
+            if attrs:
+                self.root.require_group(group).attrs.update(attrs)
+
+
+def sequence_row(record: SequenceRecord, music: dict[str, Any] | None) -> dict[str, Any]:
+    """The ``sequences`` table row of a record placed at ``record.frame_start``, and how its
+    music (its ``music`` table row, None when it has none) covers it: ``audio_frames`` motion
+    frames have music, ``audio_truncated_frames`` music frames run past the motion's end.
+    Music starts with the motion (``audio_offset`` 0)."""
+    n = record.n_frames
+    music_frames = None if music is None else int(music["frame_stop"] - music["frame_start"])
+    bpm = record.bpm if record.bpm is not None else (music["bpm"] if music else None)
+    row: dict[str, Any] = {
+        "seq_id": record.seq_id,
+        "source": record.source,
+        "genre": record.genre,
+        "situation": record.situation,
+        **record.name_columns,
+        "dancer": record.dancer,
+        "music_id": music["music_id"] if music is not None else record.music_id,
+        "choreo": record.choreo,
+        "bpm": bpm,
+        "fps": record.fps,
+        "n_frames": n,
+        "frame_start": record.frame_start,
+        "frame_stop": record.frame_start + n,
+        "audio_offset": 0,
+        "audio_frames": 0 if music_frames is None else min(n, music_frames),
+        "audio_truncated_frames": 0 if music_frames is None else max(0, music_frames - n),
+        "music_missing": music is None,
+    }
+    if record.bpm_estimated is not None:
+        row["bpm_estimated"] = None if bpm is None else record.bpm_estimated
+    row.update(record.columns)
+    row["path"] = record.path
+    row["sha256"] = record.sha256
+    return row
+
+
+def ingest(store: str | Path, source: Source) -> CommandResult:
+    """Ingest what ``source`` plans into a new version of ``store`` (see the module docstring);
+    a "nothing to do" result when a committed version already holds it."""
+    checksums = InputChecksums()
+    skips = SkipPolicy(source.on_error)
+    plan = source.plan(checksums, skips)
+    if source.fingerprint_known_before_lock():
+        fp = fingerprint(source.command, plan.config, plan.fingerprint_keys, __version__)
+        ingested = already_ingested(store, fp)  # (asked again under the lock)
+        if ingested is not None:
+            return ingested
+    with hold_store_lock(store, wait=plan.wait_for_lock, create=plan.create_store) as lock:
+        locked = source.under_lock(store)
+        if isinstance(locked, CommandResult):
+            return locked
+        fp = fingerprint(source.command, plan.config, plan.fingerprint_keys + locked, __version__)
+        ingested = already_ingested(store, fp)  # by a writer this one waited for
+        if ingested is not None:
+            return ingested
+        source.prepare(checksums, skips)
+        return _write_version(store, source, plan, fp, lock, skips)
+
+
+def _write_version(
+    store: str | Path,
+    source: Source,
+    plan: IngestPlan,
+    fp: str,
+    lock: Any,
+    skips: SkipPolicy,
+) -> CommandResult:
+    with (
+        make_executor(plan.workers, plan.dask) as executor,
+        VersionWriter(
+            store,
+            command=source.command,
+            config=plan.config,
+            fingerprint=fp,
+            inputs=plan.inputs,
+            parent=latest_version(store),
+            carry_over=False,
+            wait_for_lock=plan.wait_for_lock,
+            stage="ingest",
+            resumable=plan.resumable,
+            lock=lock,
+            based_on=source.based_on,  # (set by under_lock: read under this same lock)
+        ) as version,
+    ):
+        # resume: keep the read batches a killed run finished, rebuild every output.
+        version.reset_outputs()
+        version.mark_prepared()
+        arrays = FrameArrays(version)
+        source.open(version, arrays)
+        kept_frames = arrays.frames
+        reads = ResumableReads(
+            version.build_area(),
+            plan.task_kind,
+            [task.item for task in plan.tasks],
+            plan.read,
+            batch_size=plan.batch_size,
+            executor=executor,
+            desc=plan.read_desc,
+        )
+        records: list[SequenceRecord] = []
+        # reads first: it runs the read tasks (their own bar) before yielding anything
+        tasks = progress(plan.tasks, plan.sequences_desc, unit=plan.sequences_unit)
+        for result, task in zip(reads, tasks, strict=True):
+            try:
+                source.check_task(task)
+                record = source.accept(task, result.get())
+            except DancedataError as exc:
+                skips.fail_or_skip(exc, task.path)
+                continue
+            if not arrays.declared:
+                arrays.declare(source.array_specs(record))
+            record.frame_start = arrays.frames
+            arrays.append(record.arrays)
+            record.arrays = {}  # written: memory holds one sequence at a time
+            records.append(record)
+        arrays.close(source.group_attrs())
+        if not records:
+            raise plan.empty_error
+        for item in skips.skipped:
+            version.skip(item["path"], item["error"])
+        music = source.music_table(records)
+        rows = source.kept_sequences() + [
+            sequence_row(r, music.by_key.get(r.music_key) if r.music_key else None) for r in records
+        ]
+        version.write_table("sequences", build_table("sequences", rows))
+        if music.rows or source.writes_empty_music_table:
+            version.write_table("music", build_table("music", music.rows))
+        for name, table in source.tables(records, music).items():
+            version.write_table(name, build_table(name, table))
+        totals = IngestTotals(
+            frames=arrays.frames,
+            new_frames=arrays.frames - kept_frames,
+            sequences=len(rows),
+            music=len(music.rows),
+            skipped=len(version.skipped),
+            read_counts=reads.counts(),
+        )
+        counts = source.counts(records, totals)
+        name = version.commit(counts=counts)
+    return CommandResult(version=name, created=True, counts=counts, skipped=version.skipped)
