@@ -23,8 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from dancedata.loader import DanceStore, MeasureWindow, check_window_count, open_split
-from dancedata.window_dataset import WindowSource
+from dancedata.loader import DanceStore
+from dancedata.views.measures import MeasureWindow
+from dancedata.window_dataset import WindowSource, open_window_source
 
 
 def _torch() -> Any:
@@ -142,13 +143,11 @@ class MeasureDataset(_WindowDataset):
         fit: str = "resample",
     ) -> None:
         _torch()
-        store = open_split(store, version, split, scheme)  # an empty split: its own error
-        self.source = WindowSource(
+        self.source = open_window_source(
             store, split, scheme, motion, audio, version,
             kind="measures", n_measures=n_measures, hop_measures=hop_measures,
             window_frames=window_frames, fit=fit,
         )  # fmt: skip
-        check_window_count(self.source.store, split, scheme, audio is not None, len(self.source))
 
 
 class SecondsDataset(_WindowDataset):
@@ -171,10 +170,8 @@ class SecondsDataset(_WindowDataset):
         fit: str = "resample",
     ) -> None:
         _torch()
-        store = open_split(store, version, split, scheme)  # an empty split: its own error
-        self.source = WindowSource(
+        self.source = open_window_source(
             store, split, scheme, motion, audio, version,
             kind="seconds", seconds=seconds, hop_seconds=hop_seconds,
             window_frames=window_frames, fit=fit,
         )  # fmt: skip
-        check_window_count(self.source.store, split, scheme, audio is not None, len(self.source))

@@ -4,8 +4,11 @@ A :class:`WindowSource` holds only small things (the store path, the window span
 options), so it pickles in a few kilobytes: a data-loader worker started by ``spawn`` gets a
 copy that opens the store itself, on its first item; one started by ``fork`` inherits whatever
 the parent already loaded (zarr resets its event loop after a fork). Views are read through the
-loader's whole-array cache (:meth:`DanceStore._full`), so after the first item of a process a
-window costs a few numpy slices.
+reader's whole-array cache (:meth:`SequenceReader.whole_array`), so after the first item of a
+process a window costs a few numpy slices.
+
+:func:`open_window_source` is what the datasets call: the split checked (an unknown or empty
+split is its own error), the source made, and a split that yields no windows refused loudly.
 """
 
 from __future__ import annotations
@@ -15,8 +18,12 @@ from typing import Any
 
 import numpy as np
 
+from dancedata.compute.view_columns import part_widths, stack_parts
 from dancedata.errors import InputError, StoreError
-from dancedata.loader import VIEWS, DanceStore
+from dancedata.loader import DanceStore
+from dancedata.store.layout import warn_once
+from dancedata.views.assemble import require_view_arrays
+from dancedata.views.layouts import VIEWS, check_view_names
 from dancedata.window_fit import FIT_MODES, ColumnPart, column_plan, fit_window
 from dancedata.window_spans import WindowSpans, measure_spans, second_spans
 
@@ -26,17 +33,10 @@ class _ViewRows:
 
     def __init__(self, store: DanceStore, view: str) -> None:
         self.parts = store.view_parts(view)
-        widths = [6 if p is None else p.shape[1] for p in self.parts]
-        self.plan = column_plan(VIEWS[view], widths)
+        self.plan = column_plan(VIEWS[view], part_widths(self.parts))
 
     def rows(self, start: int, stop: int) -> np.ndarray:
-        return np.concatenate(
-            [
-                np.zeros((stop - start, 6), np.float32) if p is None else p[start:stop]
-                for p in self.parts
-            ],
-            axis=1,
-        )
+        return stack_parts(self.parts, start, stop)
 
 
 class WindowSource:
@@ -63,9 +63,7 @@ class WindowSource:
         window_frames: int | None = None,
         fit: str = "resample",
     ) -> None:
-        for view in (motion, audio):
-            if view is not None and view not in VIEWS:
-                raise StoreError(f"unknown view {view!r}; known: {sorted(VIEWS)}")
+        check_view_names(motion, audio)
         if motion is None and audio is None:
             raise InputError("a window dataset needs a motion view, an audio view or both")
         if fit not in FIT_MODES:
@@ -80,7 +78,7 @@ class WindowSource:
         self.window_frames, self.fit = window_frames, fit
         for view in (motion, audio):
             if view is not None:
-                opened._require_view_arrays(view)
+                require_view_arrays(opened, view)
         if kind == "measures":
             self.spans: WindowSpans = measure_spans(
                 opened, split, scheme, audio is not None, n_measures, hop_measures
@@ -135,12 +133,8 @@ class WindowSource:
                 views["audio"] = _ViewRows(store, self.audio_view)
             offsets = {}
             for seq_id in set(self.spans.seq_ids):
-                row = store.sequence(seq_id)
-                audio0 = 0
-                if self.audio_view:
-                    track = store._music_rows[row["music_id"]]
-                    audio0 = int(track["frame_start"]) + int(row["audio_offset"])
-                offsets[seq_id] = (int(row["frame_start"]), audio0)
+                audio0 = store.audio_start(seq_id) if self.audio_view else 0
+                offsets[seq_id] = (int(store.sequence(seq_id)["frame_start"]), audio0)
             self._views, self._offsets = views, offsets
         return self._views, self._offsets
 
@@ -207,7 +201,7 @@ class WindowSource:
             total = padded_length(lengths, multiple_of)
             out = {}
             for name, view in views.items():
-                widths = [6 if p is None else p.shape[1] for p in view.parts]
+                widths = part_widths(view.parts)
                 dest = np.zeros((len(rows), total, sum(widths)), np.float32)
                 for b, i in enumerate(rows):
                     base = offsets[self.spans.seq_ids[i]][0 if name == "motion" else 1]
@@ -260,3 +254,62 @@ class WindowSource:
         item["length"] = kept
         item["mask"] = np.arange(self.window_frames) < kept
         return item
+
+
+def open_split(
+    store: str | Path | DanceStore, version: str | None, split: str | None, scheme: str
+) -> DanceStore:
+    """The store opened (once), after checking that ``split`` names sequences: StoreError for
+    an unknown split or one with no sequences, with what its split file listed."""
+    opened = store if isinstance(store, DanceStore) else DanceStore(store, version)
+    if split is not None and not opened.split_members(split, scheme):
+        raise StoreError(opened.empty_split_reason(split, scheme), opened.path)
+    return opened
+
+
+def check_window_count(
+    store: DanceStore, split: str | None, scheme: str, with_audio: bool, count: int
+) -> None:
+    """Loud, not empty (for the window datasets): a StoreError naming the reason when ``split``
+    yields no windows, and a one-line warning on stderr when audio windows leave out sequences
+    of the split that have no music."""
+    seq_ids = store.seq_ids(split, scheme)  # an unknown split is an error there
+    if split is not None and not seq_ids:
+        raise StoreError(store.empty_split_reason(split, scheme), store.path)
+    silent = [s for s in seq_ids if store.audio_frames(s) == 0] if with_audio else []
+    where = f"split {split!r} of scheme {scheme!r}" if split else "the store"
+    if count == 0:
+        if silent and len(silent) == len(seq_ids):
+            first = store.no_music_reason(silent[0])
+            reason = (
+                f"none of its {len(seq_ids)} sequences has music ({first}); read motion only "
+                "with audio=None"
+            )
+        else:
+            reason = f"none of its {len(seq_ids)} sequences is long enough for one window"
+        raise StoreError(f"no windows in {where}, version {store.version}: {reason}", store.path)
+    if silent:
+        warn_once(
+            f"{store.path}: audio windows leave out {len(silent)} of {len(seq_ids)} sequences of "
+            f"{where} that have no music (e.g. {store.no_music_reason(silent[0])}); "
+            "audio=None keeps them"
+        )
+
+
+def open_window_source(
+    store: str | Path | DanceStore,
+    split: str | None,
+    scheme: str,
+    motion: str | None,
+    audio: str | None,
+    version: str | None,
+    **windows: Any,
+) -> WindowSource:
+    """A :class:`WindowSource` of ``split`` for a dataset: the split checked first (an unknown
+    or empty split is its own error, see :func:`open_split`), the store opened once, and the
+    result refused when it has no window (:func:`check_window_count`). ``windows`` are
+    :class:`WindowSource`'s keyword options (kind, n_measures, seconds, window_frames, fit…)."""
+    opened = open_split(store, version, split, scheme)
+    source = WindowSource(opened, split, scheme, motion, audio, version, **windows)
+    check_window_count(source.store, split, scheme, audio is not None, len(source))
+    return source

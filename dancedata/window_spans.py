@@ -30,7 +30,7 @@ import numpy as np
 from dancedata.errors import InputError
 
 if TYPE_CHECKING:
-    from dancedata.loader import DanceStore
+    from dancedata.sequence_reader import SequenceReader
 
 
 @dataclass(frozen=True)
@@ -93,13 +93,13 @@ def sliding_starts(n_frames: int, window: int, hop: float) -> np.ndarray:
     return starts[starts + window <= n_frames]
 
 
-def _frames_available(store: DanceStore, seq_id: str, with_audio: bool) -> int:
+def _frames_available(store: SequenceReader, seq_id: str, with_audio: bool) -> int:
     n = int(store.sequence(seq_id)["n_frames"])
     return min(n, store.audio_frames(seq_id)) if with_audio else n
 
 
 def measure_spans(
-    store: DanceStore,
+    store: SequenceReader,
     split: str | None,
     scheme: str,
     with_audio: bool,
@@ -137,7 +137,7 @@ def measure_spans(
 
 
 def second_spans(
-    store: DanceStore,
+    store: SequenceReader,
     split: str | None,
     scheme: str,
     with_audio: bool,

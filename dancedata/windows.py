@@ -1,11 +1,12 @@
 """Fast random access to measure windows: the thing a training loop asks for most.
 
 :meth:`DanceStore.view` assembles a view per call with table and zarr lookups; fine for a few
-calls, too slow for a data loader. :meth:`DanceStore.measure_windows` does those lookups once
-and hands :class:`MeasureWindows` the results: each window's global frame offsets as numpy
-arrays and the view's arrays flattened to 2-D (the loader's cached whole arrays, reshaped
-without copying), so one window costs a few slices and one concatenation. This module only
-slices arrays; it never reads the store.
+calls, too slow for a data loader. :func:`dancedata.views.measures.measure_windows` (behind
+:meth:`DanceStore.measure_windows`) does those lookups once and hands :class:`MeasureWindows`
+the results: each window's global frame offsets as numpy arrays and the view's arrays
+flattened to 2-D (the reader's cached whole arrays, reshaped without copying), so one window
+costs a few slices and one concatenation. This module only slices arrays; it never reads the
+store.
 
     windows = store.measure_windows(split="train")       # fact_motion_225 + fact_audio_35
     motion, audio = windows[i]                            # (frames, 225), (frames, 35) float32
@@ -18,13 +19,14 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from dancedata.compute.view_columns import stack_parts
 from dancedata.errors import StoreError
 
 
 class MeasureWindows:
     """Every measure of a split as (motion view, audio view) windows, by index.
 
-    Built from arrays, not from a store (:meth:`dancedata.loader.DanceStore.measure_windows`
+    Built from arrays, not from a store (:func:`dancedata.views.measures.measure_windows`
     does the table lookups and passes the results here), so this module knows nothing of the
     reader. One entry per window in ``seq_ids``, ``measure``, ``length`` (frames),
     ``motion_start`` and ``audio_start`` (global row offsets into the motion and audio arrays).
@@ -59,11 +61,7 @@ class MeasureWindows:
         if self._motion is None:
             raise StoreError("these windows were opened without a motion view")
         a = int(self.motion_start[i])
-        b = a + int(self.length[i])
-        return np.concatenate(
-            [np.zeros((b - a, 6), np.float32) if p is None else p[a:b] for p in self._motion],
-            axis=1,
-        )
+        return stack_parts(self._motion, a, a + int(self.length[i]))
 
     def audio(self, i: int) -> np.ndarray:
         """(frames, D) float32 audio view of window ``i`` (a copy)."""

@@ -76,6 +76,8 @@ LAYER_OF: dict[str, tuple[str, str]] = {
     "dancedata.store": ("store", "the versioned Zarr + Parquet store: layout, writer, reader"),
     "dancedata.feature_cache": ("store", "per-track feature cache on disk, keyed like the store"),
     "dancedata.exec": ("exec", "executors for work units (serial, process pool, Dask)"),
+    "dancedata.sequence_reader": ("read", "the thin reader: tables, sequence slices, audio"),
+    "dancedata.views": ("read", "paper views, measure windows, AIST++ cameras over the reader"),
     "dancedata.loader": ("read", "the store reader users open (DanceStore, views)"),
     "dancedata.window_spans": ("read", "window spans of a split, from the reader's tables"),
     "dancedata.window_dataset": ("read", "windows of a store as numpy items, for data loaders"),
