@@ -19,7 +19,6 @@ exactly as it was. Stored arrays (docs/STORE.md, "Video-derived poses"):
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -29,16 +28,19 @@ from dancedata.errors import InputError
 from dancedata.ingest.locked import already_ingested, latest_version
 from dancedata.ingest.run_state import IngestRun
 from dancedata.ingest.video_inputs import (
+    Checksums,
     VideoInputs,
     check_unique_stems,
-    pose_only_inputs,
-    resolve_inputs,
+    find_video_inputs,
+    sequence_key,
+    sequence_sha256,
 )
-from dancedata.ingest.video_music import MusicTrack, bpm_method, music_from_file, music_from_video
-from dancedata.ingest.video_poses import MASK_CODES, PoseSettings, VideoPoses, process_video
+from dancedata.ingest.video_music import MusicTrack, bpm_method, music_from_file
+from dancedata.ingest.video_poses import MASK_CODES, PoseSettings, VideoPoses
+from dancedata.ingest.video_read import VideoRead, VideoReadItem, read_video
 from dancedata.progress import progress
 from dancedata.store.arrays import FrameArrayWriter
-from dancedata.store.checksums import describe_input, fingerprint
+from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.writer import VersionWriter, hold_store_lock
@@ -106,7 +108,7 @@ class VideoIngestOptions:
             raise InputError(f"--max-gap must be 0 or more, not {self.settings.max_gap}")
 
 
-# ----------------------------------------------------------------------------- inventory
+# ----------------------------------------------------------------------------- reading
 
 
 @dataclass(kw_only=True)
@@ -115,115 +117,105 @@ class _Run(IngestRun):
 
     options: VideoIngestOptions
 
-    def pose_digest(self, inputs: VideoInputs) -> str:
-        """One manifest input for a video's pose files: the folder (and file prefix), their
-        total bytes, file count, and the sha256 over ``<file name>:<sha256>`` lines."""
-        key = str(inputs.poses) + (
-            "" if inputs.poses_prefix is None else f"/{inputs.poses_prefix}_*_keypoints.json"
-        )
-        if key not in self.described:
-            digest, total, files = hashlib.sha256(), 0, inputs.pose_files()
-            for path in files:
-                entry = describe_input(path)
-                digest.update(f"{path.name}:{entry['sha256']}\n".encode())
-                total += entry["bytes"]
-            self.described[key] = {
-                "path": key,
-                "bytes": total,
-                "sha256": digest.hexdigest(),
-                "files": len(files),
-            }
-        return self.described[key]["sha256"]
-
-
-def _inventory(run: _Run, videos: list[Path]) -> list[VideoInputs]:
-    opts = run.options
-    if not videos:  # pose files only (--fps): the sequences come from them (video_inputs)
-        return pose_only_inputs(opts.poses, opts.joints_csv, opts.music)
-    found: list[VideoInputs] = []
-    for video in videos:
-        try:
-            found.append(
-                resolve_inputs(video, opts.poses, opts.joints_csv, opts.music, len(videos) == 1)
-            )
-        except InputError as exc:
-            run.fail_or_skip(exc, video)
-    if not found:
-        raise InputError("every video was skipped; nothing to ingest")
-    return found
-
-
-def _sequence_key(run: _Run, inputs: VideoInputs) -> str:
-    """Checksum line binding a sequence id to its inputs (the fingerprint's input list)."""
-    parts = [
-        inputs.seq_id,
-        f"video={run.sha(inputs.video) if inputs.has_video else None}",
-        f"poses={run.pose_digest(inputs) if inputs.poses else None}",
-        f"csv={run.sha(inputs.joints_csv) if inputs.joints_csv else None}",
-        f"music={run.sha(inputs.music) if inputs.music else None}",
-    ]
-    return "|".join(parts)
-
-
-# ----------------------------------------------------------------------------- processing
-
 
 @dataclass
 class _Sequence:
+    """One accepted video: its files, poses and music."""
+
+    inputs: VideoInputs
     poses: VideoPoses
     music: MusicTrack | None
 
 
-def _music(run: _Run, inputs: VideoInputs, cache: dict[str, MusicTrack]) -> MusicTrack | None:
-    opts = run.options
-    if opts.no_music:
-        return None
-    if inputs.music is not None:
-        key = str(inputs.music)
-        if key not in cache:
-            cache[key] = music_from_file(inputs.music, run.sha(inputs.music), opts.bpm)
-        return cache[key]
-    return music_from_video(inputs.video, run.sha(inputs.video), opts.bpm)
+def read_items(
+    found: list[VideoInputs], options: VideoIngestOptions, checksums: Checksums
+) -> list[VideoReadItem]:
+    """One :func:`~dancedata.ingest.video_read.read_video` item per video, in store order."""
+    audio_track = not options.no_music and options.music is None
+    return [
+        VideoReadItem(
+            inputs=inputs,
+            settings=options.settings,
+            skip_bad_files=options.on_error == "skip",
+            audio_track=audio_track,
+            video_sha256=checksums.sha(inputs.video) if audio_track else None,
+            bpm=options.bpm,
+        )
+        for inputs in found
+    ]
 
 
-def _check_consistent(first: _Sequence, seq: _Sequence) -> None:
+def music_files(
+    found: list[VideoInputs], options: VideoIngestOptions, checksums: Checksums
+) -> dict[str, MusicTrack | InputError]:
+    """Each ``--music`` file described once (tempo estimated unless ``--bpm``), or the error
+    describing it raised (raised again for each video it belongs to)."""
+    tracks: dict[str, MusicTrack | InputError] = {}
+    if options.no_music:
+        return tracks
+    for inputs in found:
+        if inputs.music is None or str(inputs.music) in tracks:
+            continue
+        try:
+            tracks[str(inputs.music)] = music_from_file(
+                inputs.music, checksums.sha(inputs.music), options.bpm
+            )
+        except InputError as exc:
+            tracks[str(inputs.music)] = exc
+    return tracks
+
+
+def sequence_of(
+    inputs: VideoInputs, read: VideoRead, tracks: dict[str, MusicTrack | InputError]
+) -> _Sequence:
+    """A video's read with its music: the audio track read with it, or its ``--music`` file
+    (InputError when that could not be described)."""
+    music = read.audio
+    if inputs.music is not None and str(inputs.music) in tracks:
+        track = tracks[str(inputs.music)]
+        if isinstance(track, InputError):
+            raise track
+        music = track
+    return _Sequence(inputs, read.poses, music)
+
+
+def check_consistent(first: _Sequence, seq: _Sequence) -> None:
     """Every sequence of one store shares the frame rate and skeletons."""
     a, b = first.poses, seq.poses
-    video = b.inputs.video
+    video = seq.inputs.video
     if abs(a.fps - b.fps) > 1e-9:
         raise InputError(
-            f"frame rate {b.fps:g} differs from {a.fps:g} of {a.inputs.video.name}; pass --fps "
-            "to resample every video to one rate",
+            f"frame rate {b.fps:g} differs from {a.fps:g} of {first.inputs.video.name}; pass "
+            "--fps to resample every video to one rate",
             video,
         )
     if (a.skeleton2d and a.skeleton2d.name) != (b.skeleton2d and b.skeleton2d.name):
         raise InputError(
             f"body model {b.skeleton2d.name if b.skeleton2d else None} differs from "
-            f"{a.skeleton2d.name if a.skeleton2d else None} of {a.inputs.video.name}",
-            b.inputs.poses or video,
+            f"{a.skeleton2d.name if a.skeleton2d else None} of {first.inputs.video.name}",
+            seq.inputs.poses or video,
         )
     if a.skeleton3d != b.skeleton3d:
         raise InputError(
-            f"the joints CSV's joints differ from those of {a.inputs.video.name}",
-            b.inputs.joints_csv or video,
+            f"the joints CSV's joints differ from those of {first.inputs.video.name}",
+            seq.inputs.joints_csv or video,
         )
 
 
 def _process(run: _Run, found: list[VideoInputs]) -> list[_Sequence]:
     opts = run.options
-    skip = opts.on_error == "skip"
-    cache: dict[str, MusicTrack] = {}
+    tracks = music_files(found, opts, run)
     done: list[_Sequence] = []
-    for inputs in progress(found, "ingest videos", unit="video"):
+    items = read_items(found, opts, run)
+    for item in progress(items, "ingest videos", unit="video"):
         try:
-            poses = process_video(inputs, opts.settings, skip_bad_files=skip)
-            seq = _Sequence(poses, _music(run, inputs, cache))
+            seq = sequence_of(item.inputs, read_video(item), tracks)
         except InputError as exc:
-            run.fail_or_skip(exc, inputs.video)
+            run.fail_or_skip(exc, item.inputs.video)
             continue
         if done:
-            _check_consistent(done[0], seq)  # a setting problem: never skipped
-        run.skipped += [{"path": p, "error": e} for p, e in poses.bad_files]
+            check_consistent(done[0], seq)  # a setting problem: never skipped
+        run.skipped += [{"path": p, "error": e} for p, e in seq.poses.bad_files]
         done.append(seq)
     if not done:
         raise InputError("every video was skipped; nothing to ingest")
@@ -233,8 +225,9 @@ def _process(run: _Run, found: list[VideoInputs]) -> list[_Sequence]:
 # ----------------------------------------------------------------------------- tables
 
 
-def _music_rows(seqs: list[_Sequence], genre: str | None, fps: float) -> dict[str, dict]:
-    """Music table rows keyed by file path (one per distinct file); ids made unique."""
+def music_rows(seqs: list[_Sequence], genre: str | None, fps: float) -> dict[str, dict]:
+    """Music table rows keyed by file path (one per distinct file, feature frames packed from
+    0 at ``fps``); ids made unique."""
     rows: dict[str, dict[str, Any]] = {}
     ids: set[str] = set()
     start = 0
@@ -251,16 +244,36 @@ def _music_rows(seqs: list[_Sequence], genre: str | None, fps: float) -> dict[st
     return rows
 
 
+def video_columns(seq: _Sequence) -> dict[str, Any]:
+    """The sequences table's video columns of one sequence (docs/STORE.md)."""
+    poses, inputs = seq.poses, seq.inputs
+    tracking = poses.report.get("tracking", {})
+    return {
+        "video_fps": poses.video_fps,
+        "video_frames": poses.video_frames,
+        "video_frames_used": poses.report["video_frames_used"],
+        "drift_frames": poses.report["drift_frames"],
+        "width": poses.width,
+        "height": poses.height,
+        "tracking_method": tracking.get("method"),
+        "tracked_person": tracking.get("chosen"),
+        "identity_switches": tracking.get("identity_switches"),
+        "joints_filled": tracking.get("joints_filled"),
+        "frames_filled": tracking.get("frames_filled"),
+        "poses_path": None if inputs.poses is None else str(inputs.poses),
+        "joints_csv_path": None if inputs.joints_csv is None else str(inputs.joints_csv),
+    }
+
+
 def _sequence_row(
     seq: _Sequence, music: dict[str, Any] | None, frame: int, run: _Run
 ) -> dict[str, Any]:
     poses, opts = seq.poses, run.options
     n = poses.n_frames
-    tracking = poses.report.get("tracking", {})
     music_frames = None if music is None else music["frame_stop"] - music["frame_start"]
     bpm = seq.music.bpm if seq.music is not None else opts.bpm
     return {
-        "seq_id": poses.inputs.seq_id,
+        "seq_id": seq.inputs.seq_id,
         "source": "video",
         "genre": opts.genre,
         "situation": None,
@@ -277,38 +290,62 @@ def _sequence_row(
         "audio_truncated_frames": 0 if music_frames is None else max(0, music_frames - n),
         "music_missing": music is None,
         "bpm_estimated": None if bpm is None else bool(seq.music and seq.music.bpm_estimated),
-        "video_fps": poses.clock.fps,
-        "video_frames": poses.clock.n_frames,
-        "video_frames_used": poses.report["video_frames_used"],
-        "drift_frames": poses.report["drift_frames"],
-        "width": poses.clock.width,
-        "height": poses.clock.height,
-        "tracking_method": tracking.get("method"),
-        "tracked_person": tracking.get("chosen"),
-        "identity_switches": tracking.get("identity_switches"),
-        "joints_filled": tracking.get("joints_filled"),
-        "frames_filled": tracking.get("frames_filled"),
-        "poses_path": None if poses.inputs.poses is None else str(poses.inputs.poses),
-        "joints_csv_path": (
-            None if poses.inputs.joints_csv is None else str(poses.inputs.joints_csv)
-        ),
-        "path": str(poses.inputs.video),
-        "sha256": (
-            run.sha(poses.inputs.video)
-            if poses.inputs.has_video
-            else run.pose_digest(poses.inputs)
-            if poses.inputs.poses
-            else run.sha(poses.inputs.joints_csv)
-        ),
+        **video_columns(seq),
+        "path": str(seq.inputs.video),
+        "sha256": sequence_sha256(run, seq.inputs),
     }
 
 
-# ----------------------------------------------------------------------------- writing
+# ----------------------------------------------------------------------------- arrays
 
 
-def _motion_attrs(first: VideoPoses, up_axis: str) -> dict[str, Any]:
+@dataclass(frozen=True)
+class PoseArray:
+    """One stored array of video poses: ``motion/<name>``, rows of ``row_shape`` as ``dtype``,
+    taken from the :class:`VideoPoses` field ``field``."""
+
+    name: str
+    field: str
+    row_shape: tuple[int, ...]
+    dtype: str
+    attrs: dict[str, Any]
+
+
+def motion_attrs(first: VideoPoses, up_axis: str) -> dict[str, Any]:
+    """The motion group's attrs, from the first sequence (every one shares them)."""
     skeleton = first.skeleton3d or (first.skeleton2d.to_dict() if first.skeleton2d else None)
     return {"fps": first.fps, "up_axis": up_axis, "skeleton": skeleton, "source": "video"}
+
+
+def pose_arrays(first: VideoPoses) -> list[PoseArray]:
+    """The stored arrays, in creation order, as the first sequence has them. Video 2-d poses
+    are stored as motion/pose2d (one tracked dancer, one view), apart from AIST++'s multi-view
+    keypoints2d."""
+    arrays: list[PoseArray] = []
+    if first.keypoints2d is not None:
+        n_joints = first.keypoints2d.shape[1]
+        attrs = {
+            "units": "px",
+            "channels": ["x", "y", "confidence"],
+            "origin": "top-left, y down",
+            "missing": "x, y NaN and confidence 0",
+            "skeleton": first.skeleton2d.to_dict() if first.skeleton2d else None,
+        }
+        arrays.append(PoseArray("pose2d", "keypoints2d", (n_joints, 3), "float32", attrs))
+        mask = {"of": "pose2d", "codes": MASK_CODES}
+        arrays.append(PoseArray("pose2d_mask", "keypoints2d_mask", (n_joints,), "uint8", mask))
+    if first.positions is not None:
+        n_joints = first.positions.shape[1]
+        attrs = {
+            "units": "m",
+            "source": "joints CSV (pose lifter)",
+            "missing": "NaN",
+            "skeleton": first.skeleton3d,
+        }
+        arrays.append(PoseArray("positions", "positions", (n_joints, 3), "float32", attrs))
+        mask = {"of": "positions", "codes": MASK_CODES}
+        arrays.append(PoseArray("positions_mask", "positions_mask", (n_joints,), "uint8", mask))
+    return arrays
 
 
 def _write_arrays(version: VersionWriter, seqs: list[_Sequence], up_axis: str) -> None:
@@ -316,64 +353,18 @@ def _write_arrays(version: VersionWriter, seqs: list[_Sequence], up_axis: str) -
     motion = root.require_group("motion")
     root.require_group("audio")
     first = seqs[0].poses
-    motion.attrs.update(_motion_attrs(first, up_axis))
-    writers: dict[str, FrameArrayWriter] = {}
-    if first.keypoints2d is not None:
-        n_joints = first.keypoints2d.shape[1]
-        writers["pose2d"] = FrameArrayWriter(
-            motion,
-            "pose2d",
-            (n_joints, 3),
-            "float32",
-            attrs={
-                "units": "px",
-                "channels": ["x", "y", "confidence"],
-                "origin": "top-left, y down",
-                "missing": "x, y NaN and confidence 0",
-                "skeleton": first.skeleton2d.to_dict(),
-            },
-        )
-        writers["pose2d_mask"] = FrameArrayWriter(
-            motion,
-            "pose2d_mask",
-            (n_joints,),
-            "uint8",
-            attrs={"of": "pose2d", "codes": MASK_CODES},
-        )
-    if first.positions is not None:
-        n_joints = first.positions.shape[1]
-        writers["positions"] = FrameArrayWriter(
-            motion,
-            "positions",
-            (n_joints, 3),
-            "float32",
-            attrs={
-                "units": "m",
-                "source": "joints CSV (pose lifter)",
-                "missing": "NaN",
-                "skeleton": first.skeleton3d,
-            },
-        )
-        writers["positions_mask"] = FrameArrayWriter(
-            motion,
-            "positions_mask",
-            (n_joints,),
-            "uint8",
-            attrs={"of": "positions", "codes": MASK_CODES},
-        )
+    motion.attrs.update(motion_attrs(first, up_axis))
+    specs = pose_arrays(first)
+    writers = [FrameArrayWriter(motion, a.name, a.row_shape, a.dtype, attrs=a.attrs) for a in specs]
     for seq in seqs:
-        for name, writer in writers.items():
-            writer.append(getattr(seq.poses, _POSE_FIELDS.get(name, name)))
-    for writer in writers.values():
+        for spec, writer in zip(specs, writers, strict=True):
+            writer.append(getattr(seq.poses, spec.field))
+    for writer in writers:
         writer.close()
 
 
-# Stored array name → field of the per-video pose result. Video 2-d poses are stored as
-# motion/pose2d (one tracked dancer, one view), apart from AIST++'s multi-view keypoints2d.
-_POSE_FIELDS = {"pose2d": "keypoints2d", "pose2d_mask": "keypoints2d_mask"}
-
-
-def _counts(seqs: list[_Sequence], music_rows: dict[str, dict], run: _Run) -> dict[str, Any]:
+def video_counts(seqs: list[_Sequence], music: dict[str, dict], skipped: int) -> dict[str, Any]:
+    """The manifest counts: totals, and per video its clock, drift, tracking and music."""
     videos: dict[str, Any] = {}
     for seq in seqs:
         report = dict(seq.poses.report)
@@ -384,18 +375,18 @@ def _counts(seqs: list[_Sequence], music_rows: dict[str, dict], run: _Run) -> di
                 "bpm": seq.music.bpm,
                 "bpm_estimated": seq.music.bpm_estimated,
             }
-        videos[seq.poses.inputs.seq_id] = report
+        videos[seq.inputs.seq_id] = report
     return {
         "sequences": len(seqs),
         "frames": sum(s.poses.n_frames for s in seqs),
-        "music": len(music_rows),
-        "skipped": len(run.skipped),
+        "music": len(music),
+        "skipped": skipped,
         "bad_pose_files": sum(len(s.poses.bad_files) for s in seqs),
         "identity_switches": sum(
             s.poses.report.get("tracking", {}).get("identity_switches", 0) for s in seqs
         ),
         "drifted_sequences": sum(1 for s in seqs if s.poses.report["drift_frames"] != 0),
-        "bpm_estimated": sum(1 for r in music_rows.values() if r["bpm_estimated"]),
+        "bpm_estimated": sum(1 for r in music.values() if r["bpm_estimated"]),
         "videos": videos,
     }
 
@@ -416,8 +407,9 @@ def ingest_video(
         options = replace(options, no_music=options.no_music or options.music is None)
     check_unique_stems(paths)
     run = _Run(on_error=options.on_error, options=options)
-    found = _inventory(run, paths)
-    keys = [_sequence_key(run, inputs) for inputs in progress(found, "checksums", unit="video")]
+    opts = options
+    found = find_video_inputs(paths, opts.poses, opts.joints_csv, opts.music, run)
+    keys = [sequence_key(run, inputs) for inputs in progress(found, "checksums", unit="video")]
     config = options.config()
     fp = fingerprint(COMMAND, config, keys, __version__)
     ingested = already_ingested(store, fp)  # (asked again under the lock)
@@ -426,14 +418,14 @@ def ingest_video(
 
     seqs = _process(run, found)
     fps = seqs[0].poses.fps
-    music_rows = _music_rows(seqs, options.genre, fps)
+    music = music_rows(seqs, options.genre, fps)
     rows: list[dict[str, Any]] = []
     frame = 0
     for seq in seqs:
-        music = None if seq.music is None else music_rows[str(seq.music.path)]
-        rows.append(_sequence_row(seq, music, frame, run))
+        row = None if seq.music is None else music[str(seq.music.path)]
+        rows.append(_sequence_row(seq, row, frame, run))
         frame += seq.poses.n_frames
-    counts = _counts(seqs, music_rows, run)
+    counts = video_counts(seqs, music, len(run.skipped))
 
     # No lost update: the parent is read once the lock is held (the items are entered in
     # order), and the result is looked for again under it (dancedata.ingest.locked).
@@ -459,8 +451,8 @@ def ingest_video(
             version.skip(item["path"], item["error"])
         _write_arrays(version, seqs, options.up_axis)
         version.write_table("sequences", build_table("sequences", rows))
-        if music_rows:
-            version.write_table("music", build_table("music", list(music_rows.values())))
+        if music:
+            version.write_table("music", build_table("music", list(music.values())))
         version.write_table("splits", build_table("splits", []))
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts, skipped=version.skipped)

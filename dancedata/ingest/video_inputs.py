@@ -32,16 +32,23 @@ the pose files; :func:`pose_only_inputs`): the sequences are found in the pose i
 The pose files are then the clock: pose frame i (the number in the JSON file name, or the CSV
 row / frame column) sits at ``i / F`` seconds, and the duration is the frame count over F
 (:mod:`dancedata.ingest.video_poses`).
+
+Planning (:func:`find_video_inputs`, :func:`sequence_key`): the inputs of every video and the
+fingerprint line binding each sequence id to the checksums of its files; a folder of OpenPose
+JSON counts as one input (:func:`pose_digest`).
 """
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Protocol
 
-from dancedata.errors import InputError
+from dancedata.errors import DancedataError, InputError
 from dancedata.io.audio import MUSIC_EXTENSIONS, find_music
 from dancedata.io.openpose import keypoint_file_prefix, list_keypoint_files
+from dancedata.store.checksums import describe_input
 
 
 @dataclass(frozen=True)
@@ -231,3 +238,86 @@ def pose_only_inputs(
             )
         )
     return inputs
+
+
+# ----------------------------------------------------------------------------- planning
+
+
+class Skips(Protocol):
+    """``--on-error``: re-raise a bad input, or record it and go on."""
+
+    def fail_or_skip(self, exc: DancedataError, path: Path | str) -> None: ...
+
+
+class Checksums(Protocol):
+    """Input files described once per run: ``described`` (key → manifest input entry) and
+    ``sha`` (a file's sha256, describing it when new)."""
+
+    described: dict[str, dict[str, Any]]
+
+    def sha(self, path: Path) -> str: ...
+
+
+def find_video_inputs(
+    videos: list[Path],
+    poses: Path | None,
+    joints_csv: Path | None,
+    music: Path | None,
+    skips: Skips,
+) -> list[VideoInputs]:
+    """The inputs of every video (none given: of every pose sequence); a video whose inputs
+    are missing goes through ``skips``. InputError when none is left."""
+    if not videos:  # pose files only (--fps): the sequences come from them
+        return pose_only_inputs(poses, joints_csv, music)
+    found: list[VideoInputs] = []
+    for video in videos:
+        try:
+            found.append(resolve_inputs(video, poses, joints_csv, music, len(videos) == 1))
+        except InputError as exc:
+            skips.fail_or_skip(exc, video)
+    if not found:
+        raise InputError("every video was skipped; nothing to ingest")
+    return found
+
+
+def pose_digest(checksums: Checksums, inputs: VideoInputs) -> str:
+    """One manifest input for a video's pose files: the folder (and file prefix), their total
+    bytes, file count, and the sha256 over ``<file name>:<sha256>`` lines."""
+    key = str(inputs.poses) + (
+        "" if inputs.poses_prefix is None else f"/{inputs.poses_prefix}_*_keypoints.json"
+    )
+    if key not in checksums.described:
+        digest, total, files = hashlib.sha256(), 0, inputs.pose_files()
+        for path in files:
+            entry = describe_input(path)
+            digest.update(f"{path.name}:{entry['sha256']}\n".encode())
+            total += entry["bytes"]
+        checksums.described[key] = {
+            "path": key,
+            "bytes": total,
+            "sha256": digest.hexdigest(),
+            "files": len(files),
+        }
+    return checksums.described[key]["sha256"]
+
+
+def sequence_key(checksums: Checksums, inputs: VideoInputs) -> str:
+    """Fingerprint line binding a sequence id to its inputs' checksums."""
+    parts = [
+        inputs.seq_id,
+        f"video={checksums.sha(inputs.video) if inputs.has_video else None}",
+        f"poses={pose_digest(checksums, inputs) if inputs.poses else None}",
+        f"csv={checksums.sha(inputs.joints_csv) if inputs.joints_csv else None}",
+        f"music={checksums.sha(inputs.music) if inputs.music else None}",
+    ]
+    return "|".join(parts)
+
+
+def sequence_sha256(checksums: Checksums, inputs: VideoInputs) -> str:
+    """The checksum the sequences table records: the video's, else the pose folder's digest,
+    else the joints CSV's."""
+    if inputs.has_video:
+        return checksums.sha(inputs.video)
+    if inputs.poses:
+        return pose_digest(checksums, inputs)
+    return checksums.sha(inputs.joints_csv)  # type: ignore[arg-type]

@@ -39,7 +39,8 @@ class MusicTrack:
 
     Attributes:
         music_id: file stem (the video's stem for its own audio track).
-        path: the file featurize decodes (the video itself for its audio track).
+        path: the file featurize decodes (the video itself for its audio track), as given (a
+            string: a track read in a worker is saved between runs without pickle).
         sha256: checksum of ``path``.
         sr: native sample rate in Hz; n_samples: samples per channel; channels.
         bpm: beats per minute; bpm_estimated: True when estimated (no ``--bpm``).
@@ -48,7 +49,7 @@ class MusicTrack:
     """
 
     music_id: str
-    path: Path
+    path: str
     sha256: str
     sr: int
     n_samples: int
@@ -79,7 +80,7 @@ class MusicTrack:
             "duration_s": self.duration_s,
             "frame_start": frame_start,
             "frame_stop": frame_start + self.feature_frames(fps),
-            "path": str(self.path.resolve()),  # featurize opens it later, from anywhere
+            "path": str(Path(self.path).resolve()),  # featurize opens it later, from anywhere
             "sha256": self.sha256,
             "bpm_estimated": self.bpm_estimated,
             "music_source": self.source,
@@ -122,7 +123,7 @@ def music_from_file(path: Path, sha256: str, bpm: float | None) -> MusicTrack:
         bpm = estimate_bpm(load_mono(path, BPM_SR), BPM_SR, path)
     return MusicTrack(
         path.stem,
-        path,
+        str(path),
         sha256,
         info.sr,
         info.n_samples,
@@ -165,7 +166,7 @@ def music_from_video(video: Path, sha256: str, bpm: float | None) -> MusicTrack 
         bpm = estimate_bpm(np.ascontiguousarray(mono, np.float32), sr, video)
     return MusicTrack(
         video.stem,
-        video,
+        str(video),
         sha256,
         int(sr),
         int(n_samples),

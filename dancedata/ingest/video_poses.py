@@ -97,11 +97,12 @@ class PoseSettings:
 
 @dataclass
 class VideoPoses:
-    """One video's sequence, ready to store.
+    """One video's sequence, ready to store: arrays, JSON scalars and dataclasses only (no
+    paths), so a read saved between runs of a resumable ingest rebuilds it exactly.
 
     Attributes:
-        inputs: the files it came from.
-        clock: the video's clock.
+        video_fps, video_frames: the clock's frame rate (frames per second) and frame count.
+        width, height: frame size in pixels (None without a video).
         fps: the stored frame rate (frames per second).
         n_frames: stored frames.
         keypoints2d: (n_frames, J, 3) float32 x, y (pixels), confidence; x, y NaN and
@@ -115,8 +116,10 @@ class VideoPoses:
         bad_files: (path, problem) of pose files skipped as missing frames.
     """
 
-    inputs: VideoInputs
-    clock: VideoClock
+    video_fps: float
+    video_frames: int
+    width: int | None
+    height: int | None
     fps: float
     n_frames: int
     keypoints2d: np.ndarray | None = None
@@ -307,7 +310,14 @@ def process_video(
     )
     target_times = np.arange(n_frames, dtype=np.float64) / fps
     result = VideoPoses(
-        inputs=inputs, clock=clock, fps=fps, n_frames=n_frames, report=report, bad_files=bad
+        video_fps=clock.fps,
+        video_frames=clock.n_frames,
+        width=clock.width,
+        height=clock.height,
+        fps=fps,
+        n_frames=n_frames,
+        report=report,
+        bad_files=bad,
     )
 
     if tracked is not None:
