@@ -23,7 +23,3 @@ class InputError(DancedataError):
 
 class StoreError(DancedataError):
     """A store is missing, malformed, locked, or does not hold what was asked for."""
-
-
-class ContractViolation(StoreError):
-    """A store does not match the contract in schemas/."""

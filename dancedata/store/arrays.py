@@ -149,20 +149,3 @@ class FrameArrayWriter:
         """Write the last partial chunk; returns the number of rows written."""
         self._flush(final=True)
         return self.n_rows
-
-
-def write_whole_array(
-    group: zarr.Group,
-    path: str,
-    values: np.ndarray,
-    *,
-    attrs: dict[str, Any] | None = None,
-    chunk_frames: int = CHUNK_FRAMES,
-) -> zarr.Array:
-    """Write a complete in-memory array with the standard frame chunking."""
-    writer = FrameArrayWriter(
-        group, path, values.shape[1:], values.dtype, attrs=attrs, chunk_frames=chunk_frames
-    )
-    writer.append(values)
-    writer.close()
-    return writer.array
