@@ -61,7 +61,9 @@ def ingest_aist_cmd(
     stored in metres: translation = smpl_trans / smpl_scaling, keypoints3d and camera
     translation cm / 100."""
     setup(quiet)
-    from dancedata.ingest.aist import AistIngestOptions, ingest_aist
+    from dancedata.ingest.aist import AistIngestOptions
+    from dancedata.ingest.engine import ingest
+    from dancedata.ingest.registry import source_named
 
     options = AistIngestOptions(
         music_dir=music_dir,
@@ -77,5 +79,5 @@ def ingest_aist_cmd(
     from dancedata.store.first_write import remove_store_if_left_empty
 
     with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
-        result = ingest_aist(store, raw, options)
+        result = ingest(store, source_named("aist")(raw, options))
     report(result, "ingest aist", as_json, store=str(store))

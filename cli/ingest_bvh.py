@@ -92,7 +92,9 @@ def ingest_bvh_cmd(
     Euler orders, End Sites) in the motion attrs; trans, axis_angle, euler (each joint's own
     order) and positions (forward kinematics) in metres and radians."""
     setup(quiet)
-    from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
+    from dancedata.ingest.bvh import BvhIngestOptions
+    from dancedata.ingest.engine import ingest
+    from dancedata.ingest.registry import source_named
 
     options = BvhIngestOptions(
         units=units,
@@ -115,5 +117,5 @@ def ingest_bvh_cmd(
     from dancedata.store.first_write import remove_store_if_left_empty
 
     with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
-        result = ingest_bvh(store, list(paths or []), options)
+        result = ingest(store, source_named("bvh")(list(paths or []), options))
     report(result, "ingest bvh", as_json, store=str(store))

@@ -16,15 +16,16 @@ recorded, nothing is carried over), as the other ingest commands do. ``append`` 
 latest version's sequences, music and splits and adds the new files after them; the latest
 version must be a BVH store with the same skeleton, and sequence ids must not repeat. Either way
 the version is an *ingest* stage: featurize and segment run again on it. "Latest" means latest
-once this command holds the store lock (see :mod:`dancedata.ingest.locked`): an append queued
-behind another writer adds to that writer's version.
+once this command holds the store lock (:mod:`dancedata.ingest.engine`, "No lost update"): an
+append queued behind another writer adds to that writer's version.
 
 Collections: a folder among the paths stands for every file below it matching ``glob``
-(:func:`~dancedata.ingest.bvh_inputs.expand_folders`). Files are read and processed as resumable
-units of :data:`READ_BATCH_FILES` files (:class:`~dancedata.exec.reads.ResumableReads`, as
-``ingest aist`` reads its pickles), on ``workers`` processes; a killed run leaves its finished
-units in the version's build area and the next run with the same inputs and settings reads only
-the others. The stored bytes do not depend on ``workers``.
+(:func:`~dancedata.ingest.bvh_inputs.expand_folders`). :class:`BvhSource` is an ingest source
+(:mod:`dancedata.ingest.source`): the engine (:mod:`dancedata.ingest.engine`) reads and
+processes the files as resumable tasks of :data:`READ_BATCH_FILES` files, as it reads every
+source, on ``workers`` processes; a killed run leaves its finished tasks in the version's build
+area and the next run with the same inputs and settings reads only the others. The stored bytes
+do not depend on ``workers``.
 
 Arrays and attrs are described in docs/STORE.md ("BVH stores").
 """
@@ -35,30 +36,37 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dancedata._version import __version__
 from dancedata.compute.bvh_units import parse_units
-from dancedata.errors import DancedataError, InputError
-from dancedata.exec.executors import make_executor
-from dancedata.ingest.bvh_arrays import SOURCE, BvhArrayStream
+from dancedata.errors import InputError
+from dancedata.ingest.bvh_arrays import SOURCE, BvhRig, copy_parent_frames, motion_arrays
 from dancedata.ingest.bvh_inputs import DEFAULT_GLOB, BvhInput, resolve_inputs
 from dancedata.ingest.bvh_motion import BvhMotion, BvhSettings, process_bvh
-from dancedata.ingest.locked import already_ingested
-from dancedata.ingest.resumable_reads import ResumableReads
-from dancedata.ingest.run_state import IngestRun
+from dancedata.ingest.engine import ingest
+from dancedata.ingest.registry import register_source
+from dancedata.ingest.source import (
+    FrameArrayTarget,
+    IngestPlan,
+    IngestTotals,
+    InputChecksums,
+    MusicTable,
+    ReadTask,
+    SequenceRecord,
+    SkipPolicy,
+    Source,
+    StoredArray,
+)
 from dancedata.io.bvh_attrs import is_bvh_skeleton
 from dancedata.io.bvh_head import FPS_RANGE
 from dancedata.progress import progress
-from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
-from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
-from dancedata.store.writer import VersionWriter, base_fingerprint, hold_store_lock
+from dancedata.store.writer import VersionWriter, base_fingerprint
 
-__all__ = ["COMMAND", "BvhIngestOptions", "ingest_bvh"]
+__all__ = ["COMMAND", "BvhIngestOptions", "BvhSource", "ingest_bvh"]
 
 COMMAND = "ingest bvh"
-# Files per resumable read unit: a killed run loses at most this many files' work.
+# Files per resumable read task: a killed run loses at most this many files' work.
 READ_BATCH_FILES = 8
 _FRAMES_MODES = ("declared", "present")
 
@@ -144,23 +152,20 @@ class BvhIngestOptions:
         }
 
 
-# ----------------------------------------------------------------------------- the run
+# ----------------------------------------------------------------------------- inputs
 
 
-@dataclass(kw_only=True)
-class _Run(IngestRun):
-    options: BvhIngestOptions
-
-
-def _checked_inputs(run: _Run, inputs: list[BvhInput]) -> tuple[list[BvhInput], list[str]]:
+def _checked_inputs(
+    inputs: list[BvhInput], checksums: InputChecksums, skips: SkipPolicy
+) -> tuple[list[BvhInput], list[str]]:
     """Inputs whose files exist, and the fingerprint line of each."""
     kept, keys = [], []
     for item in progress(inputs, "checksums", unit="file"):
         try:
-            bvh = run.sha(item.path)
-            music = run.sha(item.music) if item.music is not None else None
+            bvh = checksums.sha(item.path)
+            music = checksums.sha(item.music) if item.music is not None else None
         except InputError as exc:
-            run.fail_or_skip(exc, item.path)
+            skips.fail_or_skip(exc, item.path)
             continue
         kept.append(item)
         keys.append(
@@ -173,8 +178,8 @@ def _checked_inputs(run: _Run, inputs: list[BvhInput]) -> tuple[list[BvhInput], 
 
 
 @dataclass
-class _Parent:
-    """What an appended-to version contributes."""
+class _AppendedVersion:
+    """What the version appended to (``--append``) contributes."""
 
     reader: VersionReader
     attrs: dict[str, Any]
@@ -182,12 +187,8 @@ class _Parent:
     music: list[dict[str, Any]]
     splits: list[dict[str, Any]]
 
-    @property
-    def fps(self) -> float:
-        return float(self.attrs["fps"])
 
-
-def _parent(store: str | Path, layout: StoreLayout) -> _Parent:
+def _appended_version(store: str | Path, layout: StoreLayout) -> _AppendedVersion:
     if not layout.exists():
         raise InputError("--append needs an existing store", store)
     reader = VersionReader(store)
@@ -199,7 +200,7 @@ def _parent(store: str | Path, layout: StoreLayout) -> _Parent:
             "another store",
             store,
         )
-    return _Parent(
+    return _AppendedVersion(
         reader=reader,
         attrs=attrs,
         rows=reader.table("sequences").to_pylist(),
@@ -209,7 +210,10 @@ def _parent(store: str | Path, layout: StoreLayout) -> _Parent:
 
 
 def _already_appended(
-    parent: _Parent, inputs: list[BvhInput], run: _Run, config: dict[str, Any]
+    parent: _AppendedVersion,
+    inputs: list[BvhInput],
+    checksums: InputChecksums,
+    config: dict[str, Any],
 ) -> bool:
     """The parent was made by this command with these settings and already holds every input
     (same sequence id and content): appending them again has nothing to do."""
@@ -224,7 +228,7 @@ def _already_appended(
         row = held.get(item.seq_id)
         return (
             row is not None
-            and row["sha256"] == run.sha(item.path)
+            and row["sha256"] == checksums.sha(item.path)
             and row["genre"] == item.genre
             and (item.bpm is None or row["bpm"] == item.bpm)
             and (row["music_id"] is None) == (item.music is None)
@@ -233,7 +237,20 @@ def _already_appended(
     return all(same(item) for item in inputs)
 
 
-def _tracks(run: _Run, inputs: list[BvhInput]) -> tuple[list[BvhInput], dict[str, Any]]:
+def _check_new_ids(parent: _AppendedVersion, inputs: list[BvhInput]) -> None:
+    present = {r["seq_id"] for r in parent.rows}
+    for item in inputs:
+        if item.seq_id in present:
+            raise InputError(
+                f"sequence {item.seq_id!r} is already in version {parent.reader.version}; "
+                "rename the file, or ingest without --append",
+                item.path,
+            )
+
+
+def _tracks(
+    inputs: list[BvhInput], checksums: InputChecksums, skips: SkipPolicy
+) -> tuple[list[BvhInput], dict[str, Any]]:
     """Describe each music file once (tempo estimated when no bpm is given)."""
     from dancedata.ingest.video_music import music_from_file
 
@@ -243,77 +260,17 @@ def _tracks(run: _Run, inputs: list[BvhInput]) -> tuple[list[BvhInput], dict[str
     for item in progress(inputs, "read music", total=paired, unit="file") if paired else inputs:
         if item.music is not None and str(item.music) not in tracks:
             try:
-                tracks[str(item.music)] = music_from_file(item.music, run.sha(item.music), item.bpm)
+                tracks[str(item.music)] = music_from_file(
+                    item.music, checksums.sha(item.music), item.bpm
+                )
             except InputError as exc:
-                run.fail_or_skip(exc, item.music)
+                skips.fail_or_skip(exc, item.music)
                 continue
         kept.append(item)
     return kept, tracks
 
 
 # ----------------------------------------------------------------------------- tables
-
-
-@dataclass(frozen=True)
-class _Done:
-    """What the tables need of an ingested file (its arrays are already written)."""
-
-    item: BvhInput
-    frame_start: int
-    n_frames: int
-    fps: float
-    source_fps: float
-    source_frames: int
-    source_frame_time_s: float
-    size_m: float
-    declared_frames: int | None
-
-    @classmethod
-    def of(cls, item: BvhInput, motion: BvhMotion, frame_start: int) -> _Done:
-        return cls(
-            item,
-            frame_start,
-            motion.n_frames,
-            motion.fps,
-            motion.source_fps,
-            motion.source_frames,
-            motion.source_frame_time_s,
-            motion.size_m,
-            motion.declared_frames,
-        )
-
-
-def _sequence_row(
-    done: _Done, music: dict[str, Any] | None, bpm_estimated: bool, sha256: str
-) -> dict[str, Any]:
-    item, n = done.item, done.n_frames
-    music_frames = None if music is None else music["frame_stop"] - music["frame_start"]
-    bpm = item.bpm if item.bpm is not None else (music["bpm"] if music else None)
-    return {
-        "seq_id": item.seq_id,
-        "source": SOURCE,
-        "genre": item.genre,
-        "situation": None,
-        "dancer": None,
-        "music_id": None if music is None else music["music_id"],
-        "choreo": None,
-        "bpm": bpm,
-        "fps": done.fps,
-        "n_frames": n,
-        "frame_start": done.frame_start,
-        "frame_stop": done.frame_start + n,
-        "audio_offset": 0,
-        "audio_frames": 0 if music_frames is None else min(n, music_frames),
-        "audio_truncated_frames": 0 if music_frames is None else max(0, music_frames - n),
-        "music_missing": music is None,
-        "bpm_estimated": None if bpm is None else (item.bpm is None and bpm_estimated),
-        "source_fps": done.source_fps,
-        "source_frames": done.source_frames,
-        "source_frame_time_s": done.source_frame_time_s,
-        "rig_size_m": done.size_m,
-        "path": str(item.path),
-        "sha256": sha256,
-    }
 
 
 def _music_table(
@@ -349,195 +306,183 @@ def _music_table(
     return rows, by_path
 
 
-def _write_tables(
-    version: VersionWriter,
-    parent: _Parent | None,
-    done: list[_Done],
-    tracks: dict[str, Any],
-    fps: float,
-    run: _Run,
-) -> int:
-    """sequences, music and splits tables; returns the number of music tracks."""
-    used = [d.item for d in done]
-    music_rows, by_path = _music_table(parent.music if parent else [], tracks, used, fps)
-    rows = list(parent.rows) if parent else []
-    for d in done:
-        music = by_path.get(str(d.item.music)) if d.item.music is not None else None
-        track = tracks.get(str(d.item.music)) if d.item.music is not None else None
-        estimated = bool(track and track.bpm_estimated)
-        rows.append(_sequence_row(d, music, estimated, run.sha(d.item.path)))
-    splits = list(parent.splits) if parent else []
-    splits += [
-        {"scheme": "custom", "split": item.split, "seq_id": item.seq_id}
-        for item in used
-        if item.split is not None
-    ]
-    version.write_table("sequences", build_table("sequences", rows))
-    if music_rows:
-        version.write_table("music", build_table("music", music_rows))
-    version.write_table("splits", build_table("splits", splits))
-    return len(music_rows)
-
-
-# ----------------------------------------------------------------------------- the command
-
-
-def _check_new_ids(parent: _Parent, inputs: list[BvhInput]) -> None:
-    present = {r["seq_id"] for r in parent.rows}
-    for item in inputs:
-        if item.seq_id in present:
-            raise InputError(
-                f"sequence {item.seq_id!r} is already in version {parent.reader.version}; "
-                "rename the file, or ingest without --append",
-                item.path,
-            )
+# ----------------------------------------------------------------------------- the source
 
 
 def _read_file(item: tuple[str, BvhSettings]) -> BvhMotion:
-    """One read-unit item (top level: process pools pickle it): a file read and processed."""
+    """One read-task item (top level: process pools pickle it): a file read and processed."""
     path, settings = item
     return process_bvh(Path(path), settings)
 
 
-def _ingest_files(
-    stream: BvhArrayStream,
-    inputs: list[BvhInput],
-    settings: BvhSettings,
-    run: _Run,
-    reads: ResumableReads,
-) -> list[_Done]:
-    """Stream every file's processed arrays in input order; bad ones fail the run or are
-    skipped."""
-    done: list[_Done] = []
-    # reads first: it runs the read units (their own bar) before yielding anything
-    for loaded, item in zip(reads, progress(inputs, "ingest BVH", unit="file"), strict=True):
-        try:
-            motion = loaded.get()
-            stream.check(motion, item.path)
-        except DancedataError as exc:
-            run.fail_or_skip(exc, item.path)
-            continue
-        start = stream.add(
-            motion, item.seq_id, settings.units.name, settings.units.metres, item.path
+@register_source("bvh")
+class BvhSource(Source):
+    """BVH files (and/or a manifest CSV) as engine records (:mod:`dancedata.ingest.source`);
+    see the module docstring."""
+
+    command = COMMAND
+
+    def __init__(self, paths: list[str | Path], options: BvhIngestOptions) -> None:
+        options.check()
+        self.paths = [Path(p) for p in paths]
+        self.options = options
+        self.on_error = options.on_error
+        self.settings = options.settings()
+        self.config = options.config()
+        self.rig = BvhRig(options.up_axis, options.skeleton_atol_m)
+        self.parent: _AppendedVersion | None = None
+        self.tracks: dict[str, Any] = {}
+
+    # -- before the version opens ----------------------------------------------------------
+    def plan(self, checksums: InputChecksums, skips: SkipPolicy) -> IngestPlan:
+        options = self.options
+        resolved = resolve_inputs(
+            self.paths,
+            music=options.music,
+            bpm=options.bpm,
+            genre=options.genre,
+            manifest=options.manifest,
+            glob=options.glob,
         )
-        done.append(_Done.of(item, motion, start))
-    return done
+        self.checksums = checksums
+        self.inputs, keys = _checked_inputs(resolved, checksums, skips)
+        return IngestPlan(
+            config=self.config,
+            fingerprint_keys=keys,
+            inputs=None,  # every file described through checksums, when the version opens
+            tasks=self._tasks(self.inputs),
+            read=_read_file,
+            task_kind="bvh",
+            read_desc="read BVH files",
+            sequences_desc="ingest BVH",
+            sequences_unit="file",
+            batch_size=READ_BATCH_FILES,
+            workers=options.workers,
+            wait_for_lock=options.wait_for_lock,
+            create_store=not options.append,
+            empty_error=InputError("every BVH file was skipped; nothing to ingest"),
+        )
+
+    def _tasks(self, inputs: list[BvhInput]) -> list[ReadTask]:
+        return [ReadTask(str(item.path), (str(item.path), self.settings)) for item in inputs]
+
+    def check_store(self, store: str | Path) -> None:
+        if self.options.append and not StoreLayout(store).exists():
+            raise InputError("--append needs an existing store", store)
+
+    def fingerprint_known_before_lock(self) -> bool:
+        return not self.options.append  # the fingerprint names the version appended to
+
+    def under_lock(self, store: str | Path) -> list[str] | CommandResult:
+        """``--append``: the latest version once the lock is held, so an append that waited
+        behind another writer appends to that writer's result."""
+        if not self.options.append:
+            return []
+        parent = self.parent = _appended_version(store, StoreLayout(store))
+        if _already_appended(parent, self.inputs, self.checksums, self.config):
+            return CommandResult(version=parent.reader.version, created=False)
+        _check_new_ids(parent, self.inputs)
+        self.based_on = parent.reader.version
+        return [f"append-to={base_fingerprint(parent.reader.manifest)}"]
+
+    def prepare(self, checksums: InputChecksums, skips: SkipPolicy) -> list[ReadTask]:
+        """Describe the music (tempo); files whose music is unreadable are skipped or fail."""
+        self.inputs, self.tracks = _tracks(self.inputs, checksums, skips)
+        self.by_path = {str(item.path): item for item in self.inputs}
+        return self._tasks(self.inputs)
+
+    # -- writing ---------------------------------------------------------------------------
+    def open(self, version: VersionWriter, arrays: FrameArrayTarget) -> None:
+        if self.parent is None:
+            return
+        reader = self.parent.reader
+        self.rig.adopt_parent(reader)
+        n_frames = max((r["frame_stop"] for r in self.parent.rows), default=0)
+        copy_parent_frames(reader, arrays, self.rig.array_specs(), n_frames)
+
+    def kept_sequences(self) -> list[dict[str, Any]]:
+        return list(self.parent.rows) if self.parent else []
+
+    def accept(self, task: ReadTask, value: Any) -> SequenceRecord:
+        item, motion, units = self.by_path[task.path], value, self.settings.units
+        self.rig.check(motion, item.path)
+        self.rig.adopt_first(motion, item.seq_id, units.name, units.metres, item.path)
+        track = self.tracks.get(str(item.music)) if item.music is not None else None
+        return SequenceRecord(
+            seq_id=item.seq_id,
+            source=SOURCE,
+            path=str(item.path),
+            sha256=self.checksums.sha(item.path),
+            fps=motion.fps,
+            n_frames=motion.n_frames,
+            arrays=motion_arrays(motion),
+            genre=item.genre,
+            music_key=None if item.music is None else str(item.music),
+            bpm=item.bpm,
+            bpm_estimated=item.bpm is None and bool(track and track.bpm_estimated),
+            columns={
+                "source_fps": motion.source_fps,
+                "source_frames": motion.source_frames,
+                "source_frame_time_s": motion.source_frame_time_s,
+                "rig_size_m": motion.size_m,
+            },
+            item=(item, motion.declared_frames),
+        )
+
+    def array_specs(self, first: SequenceRecord) -> list[StoredArray]:
+        return self.rig.array_specs()
+
+    def group_attrs(self) -> dict[str, dict[str, Any]]:
+        return {"motion": self.rig.attrs}
+
+    # -- tables ----------------------------------------------------------------------------
+    def music_table(self, records: list[SequenceRecord]) -> MusicTable:
+        used = [r.item[0] for r in records]
+        parent_music = self.parent.music if self.parent else []
+        rows, by_path = _music_table(parent_music, self.tracks, used, float(self.rig.fps or 0))
+        return MusicTable(rows, by_path)
+
+    def tables(
+        self, records: list[SequenceRecord], music: MusicTable
+    ) -> dict[str, list[dict[str, Any]]]:
+        splits = list(self.parent.splits) if self.parent else []
+        splits += [
+            {"scheme": "custom", "split": item.split, "seq_id": item.seq_id}
+            for item, _ in (r.item for r in records)
+            if item.split is not None
+        ]
+        return {"splits": splits}
+
+    def counts(self, records: list[SequenceRecord], totals: IngestTotals) -> dict[str, Any]:
+        return {
+            "sequences": totals.sequences,
+            "frames": totals.frames,
+            "new_sequences": len(records),
+            "new_frames": totals.new_frames,
+            "appended_to": self.parent.reader.version if self.parent else None,
+            "music": totals.music,
+            "fps": self.rig.fps,
+            "joints": self.rig.skeleton.n_joints if self.rig.skeleton else 0,
+            "skipped": totals.skipped,
+            "files": {r.seq_id: _file_counts(r) for r in records},
+            **totals.read_counts,
+        }
+
+
+def _file_counts(record: SequenceRecord) -> dict[str, Any]:
+    """A file's frame counts for the manifest (declared ones only where they differ)."""
+    declared = record.item[1]
+    columns = record.columns
+    return {
+        "source_fps": columns["source_fps"],
+        "source_frames": columns["source_frames"],
+        "frames": record.n_frames,
+        "rig_size_m": round(columns["rig_size_m"], 4),
+    } | ({"declared_frames": declared} if declared != columns["source_frames"] else {})
 
 
 def ingest_bvh(
     store: str | Path, paths: list[str | Path], options: BvhIngestOptions
 ) -> CommandResult:
     """Ingest BVH ``paths`` (and/or ``options.manifest``) into a new version of ``store``."""
-    options.check()
-    settings = options.settings()
-    inputs = resolve_inputs(
-        [Path(p) for p in paths],
-        music=options.music,
-        bpm=options.bpm,
-        genre=options.genre,
-        manifest=options.manifest,
-        glob=options.glob,
-    )
-    run = _Run(on_error=options.on_error, options=options)
-    inputs, keys = _checked_inputs(run, inputs)
-    if options.append and not StoreLayout(store).exists():
-        raise InputError("--append needs an existing store", store)
-    # No lost update: the version appended to, the parent, the fingerprint (which names the
-    # version appended to) and the "already done" checks are read under the store lock, so an
-    # append that waited behind another writer appends to that writer's result.
-    with hold_store_lock(store, wait=options.wait_for_lock, create=not options.append) as lock:
-        return _ingest_locked(store, inputs, keys, run, settings, lock)
-
-
-def _ingest_locked(
-    store: str | Path,
-    inputs: list[BvhInput],
-    keys: list[str],
-    run: _Run,
-    settings: BvhSettings,
-    lock: Any,
-) -> CommandResult:
-    options = run.options
-    layout = StoreLayout(store)
-    config = options.config()
-    parent = _parent(store, layout) if options.append else None
-    if parent is not None:
-        if _already_appended(parent, inputs, run, config):
-            return CommandResult(version=parent.reader.version, created=False)
-        _check_new_ids(parent, inputs)
-        keys.append(f"append-to={base_fingerprint(parent.reader.manifest)}")
-    fp = fingerprint(COMMAND, config, keys, __version__)
-    ingested = already_ingested(store, fp)
-    if ingested is not None:
-        return ingested
-    inputs, tracks = _tracks(run, inputs)
-
-    with (
-        make_executor(options.workers) as executor,
-        VersionWriter(
-            store,
-            command=COMMAND,
-            config=config,
-            fingerprint=fp,
-            inputs=list(run.described.values()),
-            parent=layout.latest() if layout.exists() else None,
-            carry_over=False,
-            wait_for_lock=options.wait_for_lock,
-            stage="ingest",
-            resumable=True,
-            lock=lock,
-            based_on=parent.reader.version if parent else None,  # (read under this same lock)
-        ) as version,
-    ):
-        # resume: keep the read units a killed run finished, rebuild every output.
-        version.reset_outputs()
-        version.mark_prepared()
-        reads = ResumableReads(
-            version.build_area(),
-            "bvh",
-            [(str(item.path), settings) for item in inputs],
-            _read_file,
-            batch_size=READ_BATCH_FILES,
-            executor=executor,
-            desc="read BVH files",
-        )
-        stream = BvhArrayStream(version, options.up_axis, options.skeleton_atol_m)
-        if parent is not None:
-            stream.copy_parent(
-                parent.reader, max((r["frame_stop"] for r in parent.rows), default=0)
-            )
-        done = _ingest_files(stream, inputs, settings, run, reads)
-        stream.close()
-        if not done:
-            raise InputError("every BVH file was skipped; nothing to ingest")
-        for item in run.skipped:
-            version.skip(item["path"], item["error"])
-        n_music = _write_tables(version, parent, done, tracks, float(stream.fps), run)
-        counts = {
-            "sequences": len(parent.rows if parent else []) + len(done),
-            "frames": stream.frames,
-            "new_sequences": len(done),
-            "new_frames": sum(d.n_frames for d in done),
-            "appended_to": parent.reader.version if parent else None,
-            "music": n_music,
-            "fps": stream.fps,
-            "joints": stream.skeleton.n_joints if stream.skeleton else 0,
-            "skipped": len(version.skipped),
-            "files": {
-                d.item.seq_id: {
-                    "source_fps": d.source_fps,
-                    "source_frames": d.source_frames,
-                    "frames": d.n_frames,
-                    "rig_size_m": round(d.size_m, 4),
-                }
-                | (
-                    {"declared_frames": d.declared_frames}
-                    if d.declared_frames != d.source_frames
-                    else {}
-                )
-                for d in done
-            },
-            **reads.counts(),
-        }
-        name = version.commit(counts=counts)
-    return CommandResult(version=name, created=True, counts=counts, skipped=version.skipped)
+    return ingest(store, BvhSource(paths, options))

@@ -5,9 +5,10 @@
 1. ``source.plan(checksums, skips)``: inputs, their checksums and the read tasks;
 2. the fingerprint (command, config, the plan's lines, package version); a committed version
    carrying it means nothing to do (asked before the lock when the source allows, and again
-   under it: no lost update, see :mod:`dancedata.ingest.locked`);
-3. the store lock (``create_store``), ``source.under_lock`` (``--append``: the parent, more
-   fingerprint lines), ``source.prepare`` (music headers, tempo);
+   under it: see "No lost update" below);
+3. ``source.check_store``, the store lock (``create_store``), ``source.under_lock``
+   (``--append``: the parent, more fingerprint lines), ``source.prepare`` (music headers,
+   tempo; may drop tasks whose inputs it skipped);
 4. a resumable :class:`~dancedata.store.writer.VersionWriter` (its parent: the latest version
    now); the read tasks run on the executor (serial, process pool or Dask) as resumable batches
    (:mod:`dancedata.ingest.resumable_reads`): a killed run's finished batches are not read
@@ -23,6 +24,14 @@
    source's other tables (splits, cameras), and ``source.counts``; then the commit.
 
 Stored bytes depend only on the inputs and the settings, never on the number of workers.
+
+No lost update (issue 11, item 3): an ingest that had to wait for the lock must not write the
+version it planned before waiting. So, once it holds the lock, it looks again for a committed
+version carrying its fingerprint (:func:`already_ingested`: a writer it waited behind may have
+just ingested the same data, and then it writes nothing), takes the latest version *now* as its
+parent (:func:`latest_version`), and ``--append`` reads the version it appends to only now, so
+the other writer's version is kept. Reading the inputs (hashing, decoding) depends on no store
+state and happens before the lock.
 """
 
 from __future__ import annotations
@@ -36,13 +45,13 @@ import numpy as np
 from dancedata._version import __version__
 from dancedata.errors import DancedataError
 from dancedata.exec.executors import make_executor
-from dancedata.ingest.locked import already_ingested, latest_version
 from dancedata.ingest.resumable_reads import ResumableReads
 from dancedata.ingest.source import (
     FrameArrayTarget,
     IngestPlan,
     IngestTotals,
     InputChecksums,
+    ReadTask,
     SequenceRecord,
     SkipPolicy,
     Source,
@@ -53,9 +62,29 @@ from dancedata.store.arrays import FrameArrayWriter
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
-from dancedata.store.writer import VersionWriter, hold_store_lock
+from dancedata.store.layout import StoreLayout
+from dancedata.store.writer import VersionWriter, find_version_with_fingerprint, hold_store_lock
 
-__all__ = ["FrameArrays", "ingest", "sequence_row"]
+__all__ = ["FrameArrays", "already_ingested", "ingest", "latest_version", "sequence_row"]
+
+
+def latest_version(store: str | Path) -> str | None:
+    """The store's latest committed version, None for a new or empty store."""
+    layout = StoreLayout(store)
+    return layout.latest() if layout.exists() else None
+
+
+def already_ingested(store: str | Path, fp: str) -> CommandResult | None:
+    """A "nothing to do" result when a committed version already holds this ingest's result.
+
+    Authoritative only under the lock. Before it, a version found is still a right answer
+    (committed versions never change), so callers may ask first to skip reading inputs; a
+    version *not* found must be asked again under the lock.
+    """
+    existing = find_version_with_fingerprint(store, fp)
+    if existing is None:
+        return None
+    return CommandResult(version=existing, created=False, latest=latest_version(store))
 
 
 class FrameArrays(FrameArrayTarget):
@@ -144,6 +173,7 @@ def ingest(store: str | Path, source: Source) -> CommandResult:
     checksums = InputChecksums()
     skips = SkipPolicy(source.on_error)
     plan = source.plan(checksums, skips)
+    source.check_store(store)
     if source.fingerprint_known_before_lock():
         fp = fingerprint(source.command, plan.config, plan.fingerprint_keys, __version__)
         ingested = already_ingested(store, fp)  # (asked again under the lock)
@@ -157,14 +187,18 @@ def ingest(store: str | Path, source: Source) -> CommandResult:
         ingested = already_ingested(store, fp)  # by a writer this one waited for
         if ingested is not None:
             return ingested
-        source.prepare(checksums, skips)
-        return _write_version(store, source, plan, fp, lock, skips)
+        kept = source.prepare(checksums, skips)
+        tasks = plan.tasks if kept is None else kept
+        inputs = plan.inputs if plan.inputs is not None else checksums.inputs()
+        return _write_version(store, source, plan, tasks, inputs, fp, lock, skips)
 
 
 def _write_version(
     store: str | Path,
     source: Source,
     plan: IngestPlan,
+    tasks: list[ReadTask],
+    inputs: list[dict[str, Any]],
     fp: str,
     lock: Any,
     skips: SkipPolicy,
@@ -176,7 +210,7 @@ def _write_version(
             command=source.command,
             config=plan.config,
             fingerprint=fp,
-            inputs=plan.inputs,
+            inputs=inputs,
             parent=latest_version(store),
             carry_over=False,
             wait_for_lock=plan.wait_for_lock,
@@ -195,7 +229,7 @@ def _write_version(
         reads = ResumableReads(
             version.build_area(),
             plan.task_kind,
-            [task.item for task in plan.tasks],
+            [task.item for task in tasks],
             plan.read,
             batch_size=plan.batch_size,
             executor=executor,
@@ -203,8 +237,8 @@ def _write_version(
         )
         records: list[SequenceRecord] = []
         # reads first: it runs the read tasks (their own bar) before yielding anything
-        tasks = progress(plan.tasks, plan.sequences_desc, unit=plan.sequences_unit)
-        for result, task in zip(reads, tasks, strict=True):
+        in_order = progress(tasks, plan.sequences_desc, unit=plan.sequences_unit)
+        for result, task in zip(reads, in_order, strict=True):
             try:
                 source.check_task(task)
                 record = source.accept(task, result.get())

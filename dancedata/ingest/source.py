@@ -120,7 +120,8 @@ class IngestPlan:
     Attributes:
         config: every setting that changes the data (fingerprinted, in the manifest).
         fingerprint_keys: one line per input binding it to its checksum, in input order.
-        inputs: the manifest's input list (dicts with path, bytes, sha256).
+        inputs: the manifest's input list (dicts with path, bytes, sha256); None: every file
+            described through the engine's InputChecksums by the time the version opens.
         tasks: one per sequence, in store order.
         read: top-level function ``item -> value`` (values: dataclasses, numpy arrays and JSON
             scalars, saved between runs without pickle).
@@ -136,7 +137,7 @@ class IngestPlan:
 
     config: dict[str, Any]
     fingerprint_keys: list[str]
-    inputs: list[dict[str, Any]]
+    inputs: list[dict[str, Any]] | None
     tasks: list[ReadTask]
     read: Callable[[Any], Any]
     task_kind: str
@@ -272,6 +273,10 @@ class Source:
         ``skips``."""
         raise NotImplementedError
 
+    def check_store(self, store: str | Path) -> None:
+        """Refuse a store this source cannot write, before the lock (``--append`` needs an
+        existing one): raise InputError."""
+
     def under_lock(self, store: str | Path) -> list[str] | CommandResult:
         """Called once the store lock is held: extra fingerprint lines that depend on the
         store (the version appended to), or a result when there is nothing to do."""
@@ -282,8 +287,10 @@ class Source:
         a committed version with this fingerprint before waiting for the lock."""
         return True
 
-    def prepare(self, checksums: InputChecksums, skips: SkipPolicy) -> None:
-        """Input work needed only when there is something to ingest (music headers, tempo)."""
+    def prepare(self, checksums: InputChecksums, skips: SkipPolicy) -> list[ReadTask] | None:
+        """Input work needed only when there is something to ingest (music headers, tempo).
+        Returns the tasks still to read when it dropped some (skipped inputs), else None."""
+        return None
 
     # -- writing ---------------------------------------------------------------------------
     def open(self, version: VersionWriter, arrays: FrameArrayTarget) -> None:
