@@ -1,4 +1,8 @@
-"""The ``cameras`` table: one row per (setting, camera), and OpenCV parameters back from it.
+"""The ``cameras`` table, built and read back in one place: one row per (setting, camera).
+
+Parsed setting files (:mod:`dancedata.io.aist_cameras`) become rows here
+(:func:`cameras_table`), and rows become a :class:`CameraSet` of OpenCV parameters
+(:func:`camera_set`); the projection math is :mod:`dancedata.compute.camera`.
 
 Row layout (scalar columns, so any Parquet reader can use them):
 
@@ -16,8 +20,9 @@ scale: x_c = R X + t scales as a whole). A sequence names its setting in the seq
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -59,6 +64,21 @@ def camera_rows(
                 "sha256": sha256,
             }
         )
+    return rows
+
+
+def cameras_table(
+    settings: Mapping[str, list[AistCamera]],
+    files: Mapping[str, str | Path],
+    checksums: Mapping[str, str],
+) -> list[dict[str, Any]]:
+    """Cameras-table rows of every setting in ``settings`` (setting → its cameras in file
+    order), settings in sorted order; ``files`` maps each setting to its JSON file (recorded as
+    ``path``), ``checksums`` that path (as str) to its sha256."""
+    rows: list[dict[str, Any]] = []
+    for setting in sorted(settings):
+        path = str(files[setting])
+        rows += camera_rows(setting, settings[setting], path, checksums.get(path))
     return rows
 
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import dancedata
-from dancedata.viz.camera_view import screen_axes
+from dancedata.compute.camera import screen_axes
 from dancedata.viz.skeleton_draw import BACKGROUND, MusicTiming, timing_at
 from tests.helpers import importorskip_unless_ci, run_cli
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dancedata.cameras import camera_rows
+from dancedata.cameras import cameras_table
 from dancedata.errors import InputError
 from dancedata.io.aist_cameras import AistCamera, read_camera_mapping, read_camera_setting
 from dancedata.io.aist_keypoints import N_VIEWS
@@ -77,10 +77,6 @@ def find_camera_inputs(raw: Path, seq_ids: list[str], on_error: str = "fail") ->
 def cameras_table_rows(
     inputs: CameraInputs, used: set[str], checksums: dict[str, str]
 ) -> list[dict[str, Any]]:
-    """Cameras-table rows of the ``used`` settings (see :mod:`dancedata.cameras`), in setting
-    order."""
-    rows: list[dict[str, Any]] = []
-    for setting in sorted(used):
-        path = str(inputs.setting_files[setting])
-        rows += camera_rows(setting, inputs.settings[setting], path, checksums.get(path))
-    return rows
+    """Cameras-table rows of the ``used`` settings, in setting order (the rows themselves are
+    :func:`dancedata.cameras.cameras_table`'s)."""
+    return cameras_table({s: inputs.settings[s] for s in used}, inputs.setting_files, checksums)

@@ -1,11 +1,12 @@
 """Synthetic AIST++ camera settings: 9 calibrated cameras in a ring around the dance floor.
 
-Pure functions. The output is what ``cameras/<setting>.json`` holds in AIST++: per camera
-``name``, ``size`` [1920, 1080], ``matrix`` (3×3, pixels), ``distortions`` (k1, k2, p1, p2, k3),
-``rotation`` (Rodrigues, world → camera) and ``translation`` in **centimetres** (the AIST++
-unit), with numbers in the real range (cameras 4.3–5 m away at 1.5–2 m height, focal
-1300–1650 px, small radial distortion). World is y-up; cameras follow OpenCV (x right, y down,
-z forward).
+Pure functions; the camera math (:func:`~dancedata.compute.camera.look_at`) is in
+:mod:`dancedata.compute.camera`. The output is what ``cameras/<setting>.json`` holds in
+AIST++: per camera ``name``, ``size`` [1920, 1080], ``matrix`` (3×3, pixels), ``distortions``
+(k1, k2, p1, p2, k3), ``rotation`` (Rodrigues, world → camera) and ``translation`` in
+**centimetres** (the AIST++ unit), with numbers in the real range (cameras 4.3–5 m away at
+1.5–2 m height, focal 1300–1650 px, small radial distortion). World is y-up; cameras follow
+OpenCV (x right, y down, z forward).
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+from dancedata.compute.camera import look_at
 
 N_CAMERAS = 9
 IMAGE_SIZE = (1920, 1080)
@@ -25,17 +28,6 @@ FLOOR_TARGET_CM = np.array([0.0, 90.0, 60.0])
 def setting_name(genre_index: int) -> str:
     """Synthetic camera setting of a genre: one setting per genre, as AIST++ mostly has."""
     return f"setting{genre_index + 1}"
-
-
-def look_at(centre: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """World → camera rotation (3, 3) of an OpenCV camera at ``centre`` looking at ``target``
-    with the world's +y up in the image."""
-    forward = target - centre
-    forward = forward / np.linalg.norm(forward)
-    right = np.cross(forward, [0.0, 1.0, 0.0])
-    right = right / np.linalg.norm(right)
-    down = np.cross(forward, right)
-    return np.stack([right, down, forward])
 
 
 def synth_camera_setting(seed: int) -> list[dict[str, Any]]:

@@ -6,7 +6,7 @@
     render_sequence("data/stores/aist-demo", seq_id, "out.mp4", RenderOptions(view="side"))
 
 What is drawn: the sequence's joints (:mod:`dancedata.viz.skeleton_source` says which array, and
-:mod:`dancedata.viz.camera_view` how each kind of coordinates is put on screen: world 3-d joints
+:mod:`dancedata.compute.camera` how each kind of coordinates is put on screen: world 3-d joints
 with their up axis up, video 2-d poses as the camera saw them), one frame per motion frame at the
 sequence's own fps; a header with the time, the frame, the current measure (from the measures
 table, 1-based) and beat (tracked beats of ``audio/beats`` counted from the measure's start, with
@@ -33,9 +33,11 @@ from typing import Any
 
 import numpy as np
 
+from dancedata.compute.camera import ViewCamera, screen_axes
+from dancedata.compute.camera import fit_view_camera as fit_camera
+from dancedata.compute.camera import project_orthographic as project
 from dancedata.errors import DancedataError, InputError
 from dancedata.loader import DanceStore, open_store
-from dancedata.viz.camera_view import ViewCamera, fit_camera, project, screen_axes
 from dancedata.viz.skeleton_draw import (
     FrameLayout,
     MusicTiming,

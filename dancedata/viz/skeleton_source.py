@@ -13,7 +13,7 @@ Sources, and the order ``source="auto"`` tries them in:
 5. ``pose2d``: video 2-d poses in the source video's pixels (x right, y down), NaN where missing.
 
 The up axis comes from the ``motion`` group attrs (``up_axis``; AIST++ and BVH: ``y``); see
-:mod:`dancedata.viz.camera_view` for how each kind is put on screen.
+:mod:`dancedata.compute.camera` for how each kind is put on screen.
 """
 
 from __future__ import annotations
