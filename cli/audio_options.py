@@ -1,11 +1,71 @@
-"""Options of ``dancedata featurize`` that choose and configure the audio feature families."""
+"""Options of ``dancedata featurize`` that choose and configure the feature families.
+
+The families' settings options are not written here: :func:`with_settings_options` makes one
+option per field of a settings dataclass that carries a help text
+(:mod:`dancedata.pipeline.family_settings`), with the field's name, type, default and lower
+bound, so a new setting reaches the command line without an edit here.
+"""
 
 from __future__ import annotations
 
+import inspect
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
+
+from dancedata.pipeline.family_settings import CliSetting, cli_settings
+
+_TYPES: dict[str, type] = {"str": str, "int": int, "float": float, "path": Path}
+
+
+def settings_option(setting: CliSetting) -> Any:
+    """The Typer annotation of one settings field's option."""
+    kind: Any = _TYPES[setting.kind]
+    if setting.optional:
+        kind = kind | None
+    extra = {} if setting.min is None else {"min": setting.min}
+    return Annotated[kind, typer.Option(help=setting.help, **extra)]
+
+
+def with_settings_options(after: dict[str, type]) -> Callable[[Callable[..., Any]], Any]:
+    """Give a command the options of settings dataclasses: ``after`` maps a parameter of the
+    command to the dataclass whose options follow it. The command takes them in ``**settings``
+    (read them with :func:`settings_values`)."""
+
+    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
+        params = []
+        for param in inspect.signature(command, eval_str=True).parameters.values():
+            if param.kind is inspect.Parameter.VAR_KEYWORD:
+                continue
+            params.append(param)
+            if param.name in after:
+                params += [
+                    inspect.Parameter(
+                        s.name,
+                        inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                        default=s.default,
+                        annotation=settings_option(s),
+                    )
+                    for s in cli_settings(after[param.name])
+                ]
+        command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+        return command
+
+    return decorate
+
+
+def settings_values(cls: type, values: dict[str, Any]) -> dict[str, Any]:
+    """The options of dataclass ``cls`` among ``values``, paths made absolute strings."""
+    out = {}
+    for setting in cli_settings(cls):
+        value = values[setting.name]
+        if setting.kind == "path" and value is not None:
+            value = str(Path(value).resolve())
+        out[setting.name] = value
+    return out
+
 
 AudioFamilies = Annotated[
     str | None,
@@ -19,55 +79,6 @@ AudioFamilies = Annotated[
         "60 fps and 16 kHz), tempogram (autocorrelation tempogram, --tempogram-frames lags). "
         "Default: fact,stems,nmfd (fact alone with --stems none).",
     ),
-]
-Stems = Annotated[
-    str,
-    typer.Option(
-        help="Stem backend for the stems and nmfd families: offline (no weights: HPSS, "
-        "frequency bands, repetition mask), openunmix (pretrained OpenUnmix; needs the 'stems' "
-        "extra and local weights, see --stems-weights) or none (no stem families).",
-    ),
-]
-StemsModel = Annotated[
-    str,
-    typer.Option(
-        help="OpenUnmix model: umxhq (MUSDB18-HQ) or umxl (larger; weights CC BY-NC-SA 4.0).",
-    ),
-]
-StemsWeights = Annotated[
-    Path | None,
-    typer.Option(
-        help="Folder with the OpenUnmix weight files (<DIR>/<model>/<file> or <DIR>/<file>), or "
-        "an openunmix model folder (separator.json + <target>.pth, its settings are read); "
-        "default: the torch hub cache. Nothing is downloaded. Their sha256 go into the config.",
-    ),
-]
-StemsMemoryMb = Annotated[
-    float,
-    typer.Option(
-        min=1.0,
-        help="OpenUnmix: separate a whole track in one pass (as openunmix does) when its estimated "
-        "peak memory fits this many MB (about 26 MB per second of stereo 44.1 kHz), else in "
-        "cross-faded chunks that fit. Recorded.",
-    ),
-]
-NmfdIterations = Annotated[
-    int, typer.Option(min=1, help="NMFD iterations (KL multiplicative updates) on the drums stem.")
-]
-NmfdTemplateFrames = Annotated[
-    int,
-    typer.Option(min=1, help="NMFD template length in feature frames (8 → 133 ms at 60 fps)."),
-]
-StftSr = Annotated[
-    int,
-    typer.Option(
-        min=1000,
-        help="Sample rate (Hz) of the stft_frames family; k = 1 + round(sr / fps) // 200 STFT "
-        "frames per motion frame (the genre study's 1025 × 6 needs e.g. 32000 at 30 fps).",
-    ),
-]
-TempogramFrames = Annotated[
-    int, typer.Option(min=2, help="Tempogram window in feature frames (384 → 6.4 s at 60 fps).")
 ]
 CacheDir = Annotated[
     Path | None,

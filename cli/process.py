@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import os
-from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from dancedata.cli.audio_options import (
@@ -12,15 +11,9 @@ from dancedata.cli.audio_options import (
     AudioFamilies,
     CacheDir,
     MaxAudioSeconds,
-    NmfdIterations,
-    NmfdTemplateFrames,
-    Stems,
-    StemsMemoryMb,
-    StemsModel,
-    StemsWeights,
-    StftSr,
-    TempogramFrames,
     UseCache,
+    settings_values,
+    with_settings_options,
 )
 from dancedata.cli.common import (
     Dask,
@@ -35,8 +28,11 @@ from dancedata.cli.common import (
 )
 from dancedata.cli.main import app
 
+from dancedata.pipeline.family_settings import AudioSettings, MotionSettings
+
 
 @app.command()
+@with_settings_options({"motion_families": MotionSettings, "audio_families": AudioSettings})
 def featurize(
     store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
     representations: Annotated[
@@ -63,23 +59,8 @@ def featurize(
             "(SMPL-24 only). A family whose input arrays the store lacks is reported absent."
         ),
     ] = "rotations",
-    smpl_model: Annotated[
-        Path | None,
-        typer.Option(
-            help="SMPL model file (.npz/.pkl) for positions of SMPL stores; not bundled "
-            "(licence): get it from https://smpl.is.tue.mpg.de. Default: $DANCEDATA_SMPL_MODEL."
-        ),
-    ] = None,
     audio: Annotated[bool, typer.Option(help="Compute audio features (once per track).")] = True,
     audio_families: AudioFamilies = None,
-    stems: Stems = "offline",
-    stems_model: StemsModel = "umxhq",
-    stems_weights: StemsWeights = None,
-    stems_memory_mb: StemsMemoryMb = 4096.0,
-    nmfd_iterations: NmfdIterations = 30,
-    nmfd_template_frames: NmfdTemplateFrames = 8,
-    stft_sr: StftSr = 16000,
-    tempogram_frames: TempogramFrames = 384,
     cache: UseCache = True,
     cache_dir: CacheDir = None,
     accept_changed_music: AcceptChangedMusic = False,
@@ -98,18 +79,19 @@ def featurize(
     wait: Wait = False,
     quiet: Quiet = False,
     as_json: Json = False,
+    **settings: Any,
 ) -> None:
     """Add motion representations and audio features as a new version: by default FACT
     (onset_env, mfcc, chroma_cens, onset_peaks, beats at fps × 512 Hz, hop 512), per-stem
     features of the offline stems and the NMFD of the drums stem. Per-track audio features
     are cached by content (see `dancedata cache list`)."""
     setup(quiet)
-    from dancedata.pipeline.audio_families import AudioSettings
     from dancedata.pipeline.featurize import FeaturizeOptions
     from dancedata.pipeline.featurize import featurize as run
 
+    smpl_model = settings_values(MotionSettings, settings)["smpl_model"]
     if smpl_model is not None:  # read by MotionSettings (workers inherit the environment)
-        os.environ["DANCEDATA_SMPL_MODEL"] = str(smpl_model.resolve())
+        os.environ["DANCEDATA_SMPL_MODEL"] = smpl_model
     options = FeaturizeOptions(
         motion=motion,
         motion_families=split_csv(motion_families) or [],
@@ -121,16 +103,7 @@ def featurize(
         workers=workers,
         dask=dask,
         audio_families=split_csv(audio_families),
-        audio_settings=AudioSettings(
-            stems=stems,
-            stems_model=stems_model,
-            stems_weights=str(stems_weights.resolve()) if stems_weights else None,
-            stems_memory_mb=stems_memory_mb,
-            nmfd_iterations=nmfd_iterations,
-            nmfd_template_frames=nmfd_template_frames,
-            stft_sr=stft_sr,
-            tempogram_frames=tempogram_frames,
-        ),
+        audio_settings=AudioSettings(**settings_values(AudioSettings, settings)),
         use_cache=cache,
         cache_dir=str(cache_dir) if cache_dir else None,
         accept_changed_music=accept_changed_music,

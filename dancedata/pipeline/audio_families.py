@@ -18,7 +18,10 @@ Families (:data:`FAMILIES`); the default set is :data:`DEFAULT_FAMILIES`:
 ``tempogram``   tempogram (A, 384) (on request)
 ==============  ==========================================================================
 
-To add a family, subclass :class:`AudioFamily` and add an instance to :data:`FAMILIES`.
+Every family registers itself (``@register_family``, :mod:`dancedata.pipeline.family`); the
+registry loads every ``audio_families*`` module, and :data:`FAMILIES` (the registered audio
+families) stays importable from here. To add a family, subclass :class:`AudioFamily` in a new
+``audio_families_<name>.py`` module and decorate it with ``@register_family("<name>")``.
 """
 
 from __future__ import annotations
@@ -28,22 +31,16 @@ from typing import Any
 import numpy as np
 
 from dancedata.compute.audio_features import AudioFeatureConfig, fact_features
-from dancedata.pipeline.audio_families_stems import NmfdDrumsFamily, StemFeaturesFamily
-from dancedata.pipeline.audio_families_study import (
-    Mel96Family,
-    StftFramesFamily,
-    TempogramFamily,
-)
 from dancedata.pipeline.audio_family_base import (
     ArraySpec,
     AudioFamily,
     AudioSettings,
     TrackAudio,
 )
+from dancedata.pipeline.family import register_family, registered
 
 __all__ = [
     "DEFAULT_FAMILIES",
-    "FAMILIES",
     "STEM_FAMILIES",
     "ArraySpec",
     "AudioFamily",
@@ -56,10 +53,20 @@ __all__ = [
 ]
 
 
+_CFG = AudioFeatureConfig()
+
+
+@register_family("fact")
 class FactFamily(AudioFamily):
     """The FACT / AIST++ 35-d ingredients (see :mod:`dancedata.compute.audio_features`)."""
 
-    name = "fact"
+    outputs = (
+        ArraySpec("onset_env", (), np.float32),
+        ArraySpec("mfcc", (_CFG.n_mfcc,), np.float32),
+        ArraySpec("chroma_cens", (_CFG.n_chroma,), np.float32),
+        ArraySpec("onset_peaks", (), np.uint8),
+        ArraySpec("beats", (), np.uint8),
+    )
     uses_bpm = True  # beats: beat_track(start_bpm=the music's BPM)
 
     def arrays(
@@ -89,19 +96,15 @@ class FactFamily(AudioFamily):
         return fact_features(y, bpm, cfg)
 
 
-FAMILIES: dict[str, AudioFamily] = {
-    family.name: family
-    for family in (
-        FactFamily(),
-        StemFeaturesFamily(),
-        NmfdDrumsFamily(),
-        Mel96Family(),
-        StftFramesFamily(),
-        TempogramFamily(),
-    )
-}
 DEFAULT_FAMILIES: tuple[str, ...] = ("fact", "stems", "nmfd")
 STEM_FAMILIES: tuple[str, ...] = ("stems", "nmfd")
+
+
+def __getattr__(name: str) -> Any:
+    """``FAMILIES``: the registered audio families (every audio_families* module), by name."""
+    if name == "FAMILIES":
+        return registered("audio")
+    raise AttributeError(name)
 
 
 def default_families(settings: AudioSettings | None = None) -> list[str]:
@@ -112,14 +115,15 @@ def default_families(settings: AudioSettings | None = None) -> list[str]:
 
 def family_problems(names: list[str], settings: AudioSettings) -> list[str]:
     """One line per unknown family, or per family that cannot run with ``settings``."""
+    families = registered("audio")
     problems = [
-        f"unknown audio feature family {name!r}; choose from {sorted(FAMILIES)}"
+        f"unknown audio feature family {name!r}; choose from {sorted(families)}"
         for name in names
-        if name not in FAMILIES
+        if name not in families
     ]
     for name in names:
-        if name in FAMILIES:
-            reason = FAMILIES[name].check(settings)
+        if name in families:
+            reason = families[name].check(settings)
             if reason:
                 problems.append(f"audio family {name!r} {reason}")
     return problems
@@ -130,7 +134,8 @@ def group_attrs(
 ) -> dict[str, dict[str, Any]]:
     """Attrs of the groups under ``audio`` that the families ``names`` describe."""
     out: dict[str, dict[str, Any]] = {}
+    families = registered("audio")
     for name in names:
-        for group, attrs in FAMILIES[name].group_attrs(cfg, settings).items():
+        for group, attrs in families[name].group_attrs(cfg, settings).items():
             out.setdefault(group, {}).update(attrs)
     return out

@@ -35,6 +35,7 @@ from dancedata.pipeline.audio_family_base import (
     AudioSettings,
     TrackAudio,
 )
+from dancedata.pipeline.family import register_family
 from dancedata.store.checksums import sha256_file
 
 SEPARATE_KEY = "separate"
@@ -62,8 +63,8 @@ def _file_sha256(path: str, size: int, mtime_ns: int) -> str:
 
 def weights_checksums(model: str, weights_dir: str | None) -> dict[str, dict[str, str]]:
     """{stem: {"file": name, "sha256": hex}} of the OpenUnmix weight files featurize would load
-    (see :func:`dancedata.compute.stems_openunmix.find_weights`; hashed once per process)."""
-    from dancedata.compute.stems_openunmix import find_weights
+    (see :func:`dancedata.io.openunmix_weights.find_weights`; hashed once per process)."""
+    from dancedata.io.openunmix_weights import find_weights
 
     out: dict[str, dict[str, str]] = {}
     for stem, path in find_weights(model, weights_dir).items():
@@ -94,7 +95,7 @@ def stem_backend_config(settings: AudioSettings) -> dict[str, Any]:
 
     config = backend_config(settings.stems, **separation_options(settings))
     if settings.stems == "openunmix":
-        from dancedata.compute import stems_openunmix as umx
+        from dancedata.compute.stems import openunmix as umx
 
         config.pop("weights_dir", None)
         config["weights"] = weights_checksums(settings.stems_model, settings.stems_weights)
@@ -126,7 +127,7 @@ def openunmix_stems(track: TrackAudio, settings: AudioSettings) -> dict[str, np.
     file's rate (resampled to the model's 44.1 kHz only when it differs), then per stem the
     channel mean resampled to the feature rate with the featurize resampler (``cfg.res_type``,
     as the mix) and fitted to the mix's length. The span decoded is the mix's (``span_s``)."""
-    from dancedata.compute.stems_openunmix import separate_channels
+    from dancedata.compute.stems.openunmix import separate_channels
 
     native = decode_native_checked(track.path, track.sha256, track.span_s)
     stems, plan = separate_channels(
@@ -186,10 +187,22 @@ def _stem_check(settings: AudioSettings) -> str | None:
     return None
 
 
+_STEM_ATTRS = ("backend", "stem")
+
+
+@register_family("stems")
 class StemFeaturesFamily(AudioFamily):
     """onset_env, MFCC and onset peaks of each of the four stems."""
 
-    name = "stems"
+    outputs = tuple(
+        spec
+        for stem in STEM_NAMES
+        for spec in (
+            ArraySpec(f"stems/{stem}/onset_env", (), np.float32, required_attrs=_STEM_ATTRS),
+            ArraySpec(f"stems/{stem}/mfcc", (20,), np.float32, required_attrs=_STEM_ATTRS),
+            ArraySpec(f"stems/{stem}/onset_peaks", (), np.uint8, required_attrs=_STEM_ATTRS),
+        )
+    )
 
     def arrays(
         self, cfg: AudioFeatureConfig, settings: AudioSettings | None = None
@@ -265,10 +278,18 @@ class StemFeaturesFamily(AudioFamily):
         return _stem_libraries(settings)
 
 
+@register_family("nmfd")
 class NmfdDrumsFamily(AudioFamily):
     """Kick, snare and hi-hat NMFD activations of the drums stem, (A, 3)."""
 
-    name = "nmfd"
+    outputs = (
+        ArraySpec(
+            "nmfd_drums",
+            (len(NMFD_COMPONENTS),),
+            np.float32,
+            required_attrs=("components", "backend"),
+        ),
+    )
 
     def arrays(
         self, cfg: AudioFeatureConfig, settings: AudioSettings | None = None

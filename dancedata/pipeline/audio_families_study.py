@@ -37,6 +37,7 @@ from dancedata.compute.study_features import (
     frames_per_chunk,
 )
 from dancedata.pipeline.audio_family_base import ArraySpec, AudioFamily, AudioSettings, TrackAudio
+from dancedata.pipeline.family import register_family
 
 _DEFAULT = AudioSettings()
 MEL_TOP_DB = 80.0
@@ -47,10 +48,20 @@ def _frames(track: TrackAudio) -> int:
     return 1 + track.y.shape[0] // track.cfg.hop_length
 
 
+@register_family("mel96")
 class Mel96Family(AudioFamily):
     """ChoreoGraph's 96-bin mel spectrogram at the motion frame rate."""
 
-    name = "mel96"
+    outputs = (
+        ArraySpec(
+            "mel96",
+            (CHOREOGRAPH_N_MELS,),
+            np.float32,
+            required_attrs=("n_mels", "units"),
+            extension=True,
+            note="ChoreoGraph: log-power mel (dB) at the motion frame rate",
+        ),
+    )
 
     def arrays(
         self, cfg: AudioFeatureConfig, settings: AudioSettings | None = None
@@ -90,10 +101,21 @@ def stft_layout(cfg: AudioFeatureConfig, settings: AudioSettings) -> dict[str, i
     return {"chunk_samples": chunk, "frames_per_chunk": k, "bins": bins, "values": bins * k}
 
 
+@register_family("stft_frames")
 class StftFramesFamily(AudioFamily):
     """The genre dissertation's per-motion-frame STFT: (A, 1025, k) magnitudes."""
 
-    name = "stft_frames"
+    outputs = (
+        ArraySpec(
+            "stft_frames",
+            (1 + GENRE_STFT_N_FFT // 2, None),
+            np.float32,
+            required_attrs=("sr", "hop_length", "n_fft", "chunk_samples", "frames_per_chunk"),
+            extension=True,
+            note="genre study: one STFT per motion-frame chunk; k = frames_per_chunk (2 at 60 "
+            "fps, 16 kHz)",
+        ),
+    )
 
     def arrays(
         self, cfg: AudioFeatureConfig, settings: AudioSettings | None = None
@@ -140,10 +162,13 @@ class StftFramesFamily(AudioFamily):
         return None
 
 
+@register_family("tempogram")
 class TempogramFamily(AudioFamily):
     """Autocorrelation tempogram of the mix's onset envelope."""
 
-    name = "tempogram"
+    outputs = (
+        ArraySpec("tempogram", (None,), np.float32, required_attrs=("win_length",), extension=True),
+    )
 
     def arrays(
         self, cfg: AudioFeatureConfig, settings: AudioSettings | None = None

@@ -15,50 +15,25 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from dancedata.compute.audio_features import AudioFeatureConfig
+from dancedata.pipeline.family import ArraySpec, Family
+from dancedata.pipeline.family_settings import STEM_CHOICES, AudioSettings
 
-STEM_CHOICES: tuple[str, ...] = ("offline", "openunmix", "none")
+__all__ = [
+    "BASE_LIBRARIES",
+    "STEM_CHOICES",
+    "ArraySpec",
+    "AudioFamily",
+    "AudioSettings",
+    "TrackAudio",
+]
+
 # Distributions whose versions can change any family's numbers (decoding, resampling, features).
 BASE_LIBRARIES: tuple[str, ...] = ("librosa", "numpy", "scipy", "soundfile", "soxr")
-
-
-@dataclass(frozen=True)
-class ArraySpec:
-    """One array a family writes, relative to the ``audio`` group."""
-
-    path: str
-    row_shape: tuple[int, ...]
-    dtype: Any
-    attrs: dict[str, Any] | None = None
-
-
-@dataclass(frozen=True)
-class AudioSettings:
-    """Settings of the audio families beyond the FACT recipe; each family fingerprints the ones
-    it reads through its ``config``.
-
-    ``stems``: stem backend, ``offline`` (weight-free), ``openunmix`` (pretrained
-    ``stems_model`` weights from ``stems_weights`` or the torch hub cache) or ``none``;
-    ``stems_memory_mb`` bounds an OpenUnmix pass (whole tracks up to it, else cross-faded chunks).
-    ``nmfd_iterations`` (KL multiplicative updates) and ``nmfd_template_frames`` (template length
-    in feature frames, 8 → 133 ms at 60 fps) set the drums NMFD. ``stft_sr`` (Hz) is the rate of
-    the per-motion-frame STFT family; ``tempogram_frames`` its window in feature frames.
-    """
-
-    stems: str = "offline"
-    stems_model: str = "umxhq"
-    stems_weights: str | None = None
-    stems_device: str = "cpu"
-    stems_memory_mb: float = 4096.0
-    nmfd_iterations: int = 30
-    nmfd_template_frames: int = 8
-    stft_sr: int = 16000
-    tempogram_frames: int = 384
 
 
 class TrackAudio:
@@ -122,8 +97,10 @@ class TrackAudio:
         return float(sum(self.timings.values()))
 
 
-class AudioFamily:
-    """Base class: ``name``, ``arrays``, ``compute`` (or ``compute_track``) and ``config``.
+class AudioFamily(Family):
+    """Base of the audio families (:class:`~dancedata.pipeline.family.Family` with group
+    ``audio``, settings :class:`AudioSettings`): ``arrays``, ``compute`` (or
+    ``compute_track``) and ``config``. Their input is the music track, not arrays.
 
     ``compute(y, bpm, cfg)`` suits a family that needs only the samples; a family that shares
     work with others overrides ``compute_track``. ``config`` lists every setting that changes
@@ -132,7 +109,8 @@ class AudioFamily:
     ``audio/stems``).
     """
 
-    name: str = ""
+    group: ClassVar[str] = "audio"
+    settings_type: ClassVar[type] = AudioSettings
     uses_bpm: bool = False  # the track's known tempo changes the numbers (cache key)
 
     def arrays(
@@ -151,17 +129,10 @@ class AudioFamily:
     ) -> dict[str, np.ndarray]:
         return self.compute(track.y, track.bpm, track.cfg)
 
-    def config(self, settings: AudioSettings | None = None) -> dict[str, Any]:
-        return {}
-
     def group_attrs(
         self, cfg: AudioFeatureConfig, settings: AudioSettings | None = None
     ) -> dict[str, dict[str, Any]]:
         return {}
-
-    def check(self, settings: AudioSettings) -> str | None:
-        """Why the family cannot run with ``settings`` (None when it can)."""
-        return None
 
     def libraries(self, settings: AudioSettings | None = None) -> tuple[str, ...]:
         """Distributions whose versions go into the family's feature-cache key."""

@@ -27,8 +27,8 @@ import numpy as np
 from dancedata._version import __version__
 from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.feature_cache import FeatureCache, cache_key, library_versions
-from dancedata.pipeline.audio_families import FAMILIES
 from dancedata.pipeline.audio_family_base import AudioSettings, TrackAudio
+from dancedata.pipeline.family import registered
 
 _TRACKS_IN_PROCESS = 0
 
@@ -44,7 +44,7 @@ def family_cache_key(
     """The feature-cache key of family ``name`` on the track with content ``audio_sha256``
     (and tempo ``bpm``, for families that use it), decoded whole or, with ``span_s``, only its
     first ``span_s`` seconds."""
-    family = FAMILIES[name]
+    family = registered("audio")[name]
     track: dict[str, float | None] = {"bpm": bpm} if family.uses_bpm else {}
     if span_s is not None:
         track["decoded_s"] = round(float(span_s), 6)
@@ -86,8 +86,9 @@ def compute_track_features(
     features: dict[str, np.ndarray] = {}
     seconds: dict[str, float] = {}
     hits = misses = 0
+    registry = registered("audio")
     for name in families:
-        family = FAMILIES[name]
+        family = registry[name]
         specs = family.arrays(cfg, settings)
         key = family_cache_key(name, settings, cfg, audio_sha256, bpm, key_span) if cache else None
         if cache is not None and key is not None:
@@ -132,8 +133,8 @@ def compute_track_features(
     return features, stats
 
 
-def audio_unit_counts(results: list[dict[str, Any]]) -> dict[str, Any]:
-    """Manifest counts from the tracks' unit results: feature-cache hits and misses (one per
+def audio_task_counts(results: list[dict[str, Any]]) -> dict[str, Any]:
+    """Manifest counts from the tracks' task results: feature-cache hits and misses (one per
     track and family), wall seconds per step summed over tracks (``decode``, ``separate``,
     each family's own work), and per-track seconds of the first track each process ran (which
     pays for imports and numba compilation) against the mean of the later ones."""

@@ -1,15 +1,21 @@
 """``dancedata featurize``: motion representations and audio features into a new version.
 
-The work is planned on the driver as independent units (see
-:mod:`dancedata.pipeline.featurize_units`): motion in chunk-aligned batches of whole sequences,
+The families come from the registry (:mod:`dancedata.pipeline.family`). The motion families of
+a run are put in an order where each runs after the families whose outputs it reads, so one run
+can compute ``positions`` and, from them, ``kinematics``; a family whose inputs neither the store
+nor an earlier family provides is reported absent.
+
+The work is planned on the driver as independent tasks (see
+:mod:`dancedata.pipeline.featurize_tasks`): motion in chunk-aligned batches of whole sequences,
 written straight into pre-sized arrays; audio once per music track (never once per sequence),
 saved per track and packed in track order afterwards, with the music table's frame ranges
-rewritten from the actual feature lengths. Units run serially, on ``workers`` local processes
+rewritten from the actual feature lengths. Tasks run serially, on ``workers`` local processes
 or on a Dask cluster; the bytes written are the same whichever engine runs them.
 
-Resume: the version is built in ``versions/.tmp-<fingerprint[:16]>``; every finished unit leaves
+Resume: the version is built in ``versions/.tmp-<fingerprint[:16]>``; every finished task leaves
 a marker, so a run killed part-way is continued by the next run with the same fingerprint, which
-redoes only the units without a marker. ``counts`` records ``units`` and ``resumed_units``.
+redoes only the tasks without a marker. ``counts`` records them as ``units`` and
+``resumed_units`` (the manifest's keys).
 """
 
 from __future__ import annotations
@@ -26,30 +32,24 @@ from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.compute.motion_representations import KNOWN_REPRESENTATIONS, REPRESENTATIONS
 from dancedata.errors import InputError, StoreError
 from dancedata.exec.executors import make_executor
-from dancedata.exec.tasks import Job
-from dancedata.exec.tasks import TaskReport as UnitReport
-from dancedata.exec.tasks import run_tasks as run_units
-from dancedata.pipeline.audio_families import (
-    FAMILIES,
-    ArraySpec,
-    AudioSettings,
-    default_families,
-    family_problems,
-    group_attrs,
-)
-from dancedata.pipeline.audio_track import audio_unit_counts
-from dancedata.pipeline.featurize_units import (
+from dancedata.exec.tasks import Job, TaskReport, run_tasks
+from dancedata.pipeline.audio_families import default_families, family_problems, group_attrs
+from dancedata.pipeline.audio_track import audio_task_counts
+from dancedata.pipeline.family import ArraySpec, Family, registered, run_order
+from dancedata.pipeline.family_settings import AudioSettings, MotionSettings
+from dancedata.pipeline.featurize_tasks import (
     AudioJob,
-    AudioUnit,
+    AudioTask,
     MotionJob,
     audio_output,
-    plan_motion_units,
-    run_audio_unit,
-    run_motion_unit,
+    plan_motion_tasks,
+    run_motion_task,
 )
+
+# tests/test_scale.py and tests/test_remote.py patch featurize's ``run_audio_unit`` to crash a
+# track part-way; the old name stays until they patch ``run_audio_task``.
+from dancedata.pipeline.featurize_tasks import run_audio_task as run_audio_unit
 from dancedata.pipeline.motion_families import DEFAULT_FAMILIES as DEFAULT_MOTION_FAMILIES
-from dancedata.pipeline.motion_families import FAMILIES as MOTION_FAMILIES
-from dancedata.pipeline.motion_families import MotionSettings
 from dancedata.pipeline.music_inputs import (
     DEFAULT_MAX_AUDIO_SECONDS,
     MusicInputs,
@@ -93,7 +93,7 @@ class FeaturizeOptions:
     # Execution only (never changes the data, so not in config()):
     workers: int = 1  # local worker processes
     dask: str | None = None  # Dask scheduler address, or "local:N"
-    unit_frames: int = 2 * CHUNK_FRAMES  # target motion frames per work unit
+    unit_frames: int = 2 * CHUNK_FRAMES  # target motion frames per task
     use_cache: bool = True  # per-track audio features from/to the feature cache
     # Music inputs (dancedata.pipeline.music_inputs): a file changed since ingest is refused
     # unless accepted (then re-hashed and recorded); seconds decoded per track are limited.
@@ -123,17 +123,18 @@ class FeaturizeOptions:
     def config(self, audio_cfg: AudioFeatureConfig | None) -> dict[str, Any]:
         """Settings that change the data; ``euler_order`` must be resolved first."""
         settings = self.motion_settings()
+        motion, audio = registered("motion"), registered("audio")
         return {
             "motion": self.motion,
             "motion_families": (
-                {n: MOTION_FAMILIES[n].config(settings) for n in sorted(self.motion_families)}
+                {n: motion[n].config(settings) for n in sorted(self.motion_families)}
                 if self.motion
                 else {}
             ),
             "audio": audio_cfg.as_dict() if (self.audio and audio_cfg) else None,
             "audio_families": (
                 {
-                    name: FAMILIES[name].config(self.audio_settings)
+                    name: audio[name].config(self.audio_settings)
                     for name in sorted(self.audio_family_names())
                 }
                 if self.audio
@@ -143,10 +144,11 @@ class FeaturizeOptions:
 
 
 def _validate(options: FeaturizeOptions) -> None:
-    unknown_motion = sorted(set(options.motion_families) - set(MOTION_FAMILIES))
+    motion_families = registered("motion")
+    unknown_motion = sorted(set(options.motion_families) - set(motion_families))
     if unknown_motion:
         raise InputError(
-            f"unknown motion feature family {unknown_motion}; choose from {sorted(MOTION_FAMILIES)}"
+            f"unknown motion feature family {unknown_motion}; choose from {sorted(motion_families)}"
         )
     if options.audio:
         problems = family_problems(options.audio_family_names(), options.audio_settings)
@@ -203,17 +205,14 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
     if existing is not None:
         return CommandResult(version=existing, created=False)
 
-    requested = (
-        [MOTION_FAMILIES[name] for name in options.motion_families] if options.motion else []
-    )
-    motion_families = [
-        f for f in requested if all(reader.has_array(f"motion/{r}") for r in f.requires)
-    ]
-    absent_families = [f for f in requested if f not in motion_families]
     n_joints = _skeleton_joints(reader)
     settings = options.motion_settings()
-    motion_specs = [s for f in motion_families for s in f.arrays(n_joints, settings)]
-    families = [FAMILIES[name] for name in options.audio_family_names()] if options.audio else []
+    plan = _plan_motion(reader, options, n_joints, settings)
+    motion_families, absent_families, motion_specs = plan.families, plan.absent, plan.specs
+    audio_registry = registered("audio")
+    families = (
+        [audio_registry[name] for name in options.audio_family_names()] if options.audio else []
+    )
     audio_specs = [spec for f in families for spec in f.arrays(audio_cfg, options.audio_settings)]
     check_work(options, bool(motion_specs), bool(audio_specs), bool(music_inputs.rows), store)
     with VersionWriter(
@@ -246,24 +245,15 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
                 build=build,
                 families=tuple(f.name for f in motion_families),
                 settings=settings,
-                needed=tuple(
-                    sorted(
-                        {r for f in motion_families for r in f.requires}
-                        | {
-                            r
-                            for f in motion_families
-                            for r in getattr(f, "reads_if_present", ())
-                            if reader.has_array(f"motion/{r}")
-                        }
-                    )
-                ),
+                needed=plan.needed,
+                handed_on=plan.handed_on,
             )
-            units = plan_motion_units(starts, stops, CHUNK_FRAMES, options.unit_frames)
+            tasks = plan_motion_tasks(starts, stops, CHUNK_FRAMES, options.unit_frames)
             jobs.append(
-                Job("motion", partial(run_motion_unit, motion_job), "featurize motion", units)
+                Job("motion", partial(run_motion_task, motion_job), "featurize motion", tasks)
             )
-        audio_units = [
-            AudioUnit(i, row["music_id"], t.path, row["bpm"], t.sha256, t.span_s, t.partial)
+        audio_tasks = [
+            AudioTask(i, row["music_id"], t.path, row["bpm"], t.sha256, t.span_s, t.partial)
             for i, (row, t) in enumerate(zip(music, music_inputs.tracks, strict=True))
         ]
         audio_job = AudioJob(
@@ -280,16 +270,16 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
                     "audio",
                     partial(run_audio_unit, audio_job),
                     "featurize audio",
-                    audio_units,
+                    audio_tasks,
                     "track",
                 )
             )
         with make_executor(options.workers, options.dask) as executor:
-            # Tracks first: they are the long units, so short motion units fill the tail.
-            report = run_units(build, sorted(jobs, key=lambda j: j.kind != "audio"), executor)
+            # Tracks first: they are the long tasks, so short motion tasks fill the tail.
+            report = run_tasks(build, sorted(jobs, key=lambda j: j.kind != "audio"), executor)
             engine = executor.describe()
         counts: dict[str, Any] = {
-            "units": report.units,
+            "units": report.tasks,
             "resumed_units": report.resumed,
             "engine": engine,
             "unit_timing": report.timing(),
@@ -302,7 +292,7 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
             }
         if options.audio:
             counts.update(
-                _pack_audio(reader, version, audio_cfg, audio_job, audio_units, music, report)
+                _pack_audio(reader, version, audio_cfg, audio_job, audio_tasks, music, report)
             )
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts)
@@ -365,14 +355,14 @@ def _prepare(
     n_frames: int,
 ) -> None:
     """Replace the carried-over arrays this run recomputes and pre-size the motion arrays
-    (units write their chunks into them); then mark the build prepared for a resumed run."""
+    (tasks write their chunks into them); then mark the build prepared for a resumed run."""
     for spec in motion_specs:
         version.remove_array(f"motion/{spec.path}")
     for spec in audio_specs:
         version.remove_array(f"audio/{spec.path}")
     group = version.zarr_group().require_group("motion")
     for spec in motion_specs:
-        array = create_checked_array(  # crc32c codec; units write every chunk
+        array = create_checked_array(  # crc32c codec; tasks write every chunk
             group,
             spec.path,
             shape=(n_frames, *spec.row_shape),
@@ -382,6 +372,47 @@ def _prepare(
         if spec.attrs:
             array.attrs.update(spec.attrs)
     version.mark_prepared({"motion_frames": n_frames})
+
+
+@dataclass(frozen=True)
+class MotionPlan:
+    """The motion families of a run in the order they run, the ones absent (an input neither
+    the store nor an earlier family provides), their arrays, the arrays read from the store
+    and the outputs handed on to a later family of the run."""
+
+    families: list[Family]
+    absent: list[Family]
+    specs: list[ArraySpec]
+    needed: tuple[str, ...]
+    handed_on: tuple[str, ...]
+
+
+def _plan_motion(
+    reader: VersionReader, options: FeaturizeOptions, n_joints: int, settings: MotionSettings
+) -> MotionPlan:
+    if not options.motion:
+        return MotionPlan([], [], [], (), ())
+    registry = registered("motion")
+    requested = [registry[name] for name in options.motion_families]
+    outputs = {f.name: f.arrays(n_joints, settings) for f in requested}
+    ordered = run_order(requested, lambda f: [s.path for s in outputs[f.name]])
+    runnable: list[Family] = []
+    produced: set[str] = set()
+    needed: set[str] = set()
+    handed_on: set[str] = set()
+    for family in ordered:
+        if not all(r in produced or reader.has_array(f"motion/{r}") for r in family.requires):
+            continue
+        for path in (*family.requires, *family.reads_if_present):
+            if path in produced:
+                handed_on.add(path)
+            elif reader.has_array(f"motion/{path}"):
+                needed.add(path)
+        runnable.append(family)
+        produced.update(s.path for s in outputs[family.name])
+    absent = [f for f in requested if f not in runnable]
+    specs = [s for f in runnable for s in outputs[f.name]]
+    return MotionPlan(runnable, absent, specs, tuple(sorted(needed)), tuple(sorted(handed_on)))
 
 
 def _skeleton_joints(reader: VersionReader) -> int:
@@ -394,9 +425,9 @@ def _pack_audio(
     version: VersionWriter,
     cfg: AudioFeatureConfig,
     job: AudioJob,
-    units: list[AudioUnit],
+    tasks: list[AudioTask],
     music: list[dict[str, Any]],
-    report: UnitReport,
+    report: TaskReport,
 ) -> dict[str, Any]:
     """Concatenate the tracks' saved features in music-table order into the audio arrays
     (one streaming writer per array, each chunk written once) and rewrite the music table's
@@ -413,7 +444,8 @@ def _pack_audio(
             "families": list(job.families),
         }
     )
-    specs = [spec for name in job.families for spec in FAMILIES[name].arrays(cfg, job.settings)]
+    registry = registered("audio")
+    specs = [spec for name in job.families for spec in registry[name].arrays(cfg, job.settings)]
     groups = group_attrs(job.families, cfg, job.settings)  # e.g. audio/stems: written whole
     for path in [*groups, *(spec.path for spec in specs)]:
         version.remove_array(f"audio/{path}")  # a pack cut short by a kill starts over
@@ -425,17 +457,17 @@ def _pack_audio(
         for spec in specs
     }
     start = 0
-    for unit, row in zip(units, music, strict=True):
-        n = int(report.results[f"audio/{unit.id}"]["frames"])
+    for task, row in zip(tasks, music, strict=True):
+        n = int(report.results[f"audio/{task.id}"]["frames"])
         for path, writer in writers.items():
-            writer.append(job.build.load_array(audio_output(unit, path)))
+            writer.append(job.build.load_array(audio_output(task, path)))
         row["frame_start"], row["frame_stop"] = start, start + n
         start += n
     for writer in writers.values():
         writer.close()
     version.write_table("music", build_table("music", music))
     _update_sequence_audio_frames(reader, version, music)
-    stats = audio_unit_counts([report.results[f"audio/{unit.id}"] for unit in units])
+    stats = audio_task_counts([report.results[f"audio/{task.id}"] for task in tasks])
     return {"music_tracks": len(music), "audio_frames": start, **stats}
 
 

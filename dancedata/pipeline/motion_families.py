@@ -6,10 +6,11 @@ frames each), so a family can use neighbouring frames (velocities, sign continui
 state carried between batches, and batches are independent work units. A family declares the
 arrays it writes and returns them with one row per frame of the batch.
 
-This module is the registry. The shared base (:class:`MotionFamily`, :class:`MotionBatch`,
-:class:`MotionSettings`) lives in :mod:`dancedata.pipeline.motion_family_base`, which the family
-modules import; this module imports the families, so imports run one way. To add a family,
-subclass :class:`MotionFamily` in its own module and add an instance to :data:`FAMILIES` below.
+Every family registers itself (``@register_family``, :mod:`dancedata.pipeline.family`); the
+registry loads every ``motion_families*`` module. This module holds the ``rotations`` family and
+the default set, and keeps :data:`FAMILIES` (the registered motion families) importable. To add
+a family, subclass :class:`MotionFamily` in a new ``motion_families_<name>.py`` module and
+decorate it with ``@register_family("<name>")``.
 """
 
 from __future__ import annotations
@@ -19,18 +20,13 @@ from typing import Any
 import numpy as np
 
 from dancedata.compute.motion_representations import (
+    KNOWN_REPRESENTATIONS,
     continue_quat_signs,
     representation_attrs,
     representations_from_axis_angle,
     row_shape,
 )
-from dancedata.pipeline.motion_families_ik import RotationsFromPositionsFamily
-from dancedata.pipeline.motion_families_kinematics import (
-    AngularFamily,
-    GeometricFamily,
-    KinematicsFamily,
-)
-from dancedata.pipeline.motion_families_positions import PositionsFamily
+from dancedata.pipeline.family import register_family, registered
 from dancedata.pipeline.motion_family_base import (
     BASE_ARRAYS,
     ArraySpec,
@@ -38,12 +34,12 @@ from dancedata.pipeline.motion_family_base import (
     MotionFamily,
     MotionSettings,
 )
+from dancedata.pipeline.source_arrays import source_array
 
 # The base names stay importable from here (their home before the registry was split off).
 __all__ = [
     "BASE_ARRAYS",
     "DEFAULT_FAMILIES",
-    "FAMILIES",
     "ArraySpec",
     "MotionBatch",
     "MotionFamily",
@@ -52,6 +48,28 @@ __all__ = [
 ]
 
 
+def _rotation_outputs() -> tuple[ArraySpec, ...]:
+    zhou = "Zhou et al. 2019: first two COLUMNS of R, (r00, r10, r20, r01, r11, r21)"
+    rows = (
+        "featurize --representations ...,rot6d_rows: first two ROWS of R, (r00, r01, r02, r10, "
+        "r11, r12), as pytorch3d matrix_to_rotation_6d and EDGE; decoding one layout as the "
+        "other inverts the rotation"
+    )
+    declared = {
+        "rotmat": ArraySpec("rotmat", ("J", 3, 3), np.float32),
+        "euler": ArraySpec("euler", ("J", 3), np.float32, required_attrs=("order",)),
+        "quat": ArraySpec("quat", ("J", 4), np.float32, required_attrs=("quat_order",)),
+        "rot6d": ArraySpec(
+            "rot6d", ("J", 6), np.float32, required_attrs=("rot6d_layout",), note=zhou
+        ),
+        "rot6d_rows": ArraySpec(
+            "rot6d_rows", ("J", 6), np.float32, required_attrs=("rot6d_layout",), note=rows
+        ),
+    }
+    return tuple(declared[name] for name in KNOWN_REPRESENTATIONS)
+
+
+@register_family("rotations")
 class RotationsFamily(MotionFamily):
     """rotmat, euler, quat (wxyz, sign-continuous within each sequence), rot6d (Zhou's
     columns) and, on request, rot6d_rows (pytorch3d's and EDGE's rows).
@@ -63,9 +81,9 @@ class RotationsFamily(MotionFamily):
     principal branch of a float32 round trip (up to 4e-5 degrees near gimbal lock, 360 degrees
     where the file winds)."""
 
-    name = "rotations"
-    requires = ("axis_angle",)
-    reads_if_present = ("euler",)
+    inputs = (source_array("axis_angle"),)
+    optional_inputs = (source_array("euler"),)
+    outputs = _rotation_outputs()
 
     def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
         return [
@@ -110,15 +128,11 @@ def _source_euler_fits(batch: MotionBatch, settings: MotionSettings) -> bool:
     )
 
 
-FAMILIES: dict[str, MotionFamily] = {
-    family.name: family
-    for family in (
-        RotationsFamily(),
-        PositionsFamily(),
-        KinematicsFamily(),
-        AngularFamily(),
-        GeometricFamily(),
-        RotationsFromPositionsFamily(),
-    )
-}
 DEFAULT_FAMILIES: tuple[str, ...] = ("rotations",)
+
+
+def __getattr__(name: str) -> Any:
+    """``FAMILIES``: the registered motion families (every motion_families* module), by name."""
+    if name == "FAMILIES":
+        return registered("motion")
+    raise AttributeError(name)

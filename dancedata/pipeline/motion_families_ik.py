@@ -21,8 +21,8 @@ the featurize config of the manifest). Arrays written, one row per frame:
 
 Only for position-only stores: a skeleton with a bone structure (BODY_25 or COCO-18 joint names)
 and no source rotations (BVH or SMPL stores are refused, their rotations are the data).
-Run ``featurize --motion-families rotations_from_positions``, then ``featurize`` again for the
-other representations (rotmat, euler, quat, rot6d) of the solved rotations.
+``featurize --motion-families rotations_from_positions,rotations`` also writes the other
+representations (rotmat, euler, quat, rot6d) of the solved rotations, in the same run.
 """
 
 from __future__ import annotations
@@ -34,12 +34,14 @@ import numpy as np
 from dancedata.compute.ik import IK_METHOD, fk_residual, rest_skeleton, solve_rotations
 from dancedata.compute.rotations import rotmat_to_axis_angle
 from dancedata.errors import InputError
+from dancedata.pipeline.family import register_family
 from dancedata.pipeline.motion_family_base import (
     ArraySpec,
     MotionBatch,
     MotionFamily,
     MotionSettings,
 )
+from dancedata.pipeline.source_arrays import source_array
 
 __all__ = ["RotationsFromPositionsFamily", "solve_sequence"]
 
@@ -100,11 +102,22 @@ def solve_sequence(
     }
 
 
+def _ik_output(path: str, row_shape: tuple, dtype: type, *attrs: str) -> ArraySpec:
+    return ArraySpec(path, row_shape, dtype, required_attrs=(*attrs, "method"), extension=True)
+
+
+@register_family("rotations_from_positions")
 class RotationsFromPositionsFamily(MotionFamily):
     """Joint rotations and root translation from ``motion/positions`` (module docstring)."""
 
-    name = "rotations_from_positions"
-    requires = ("positions",)
+    inputs = (source_array("positions"),)
+    outputs = (
+        source_array("axis_angle"),
+        source_array("trans"),
+        _ik_output("ik_rest_offsets", ("J", 3), np.float32, "units", "of"),
+        _ik_output("ik_residual", ("J",), np.float32, "units", "missing"),
+        _ik_output("ik_solved", ("J",), np.uint8, "codes"),
+    )
 
     def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
         method = {"method": IK_METHOD, "from": "motion/positions"}

@@ -1,9 +1,9 @@
 """Motion feature families computed on request: kinematics of joint positions, angular velocity
 of joint rotations, and the geometric (Müller) features of SMPL-24 poses.
 
-Each class subclasses :class:`~dancedata.pipeline.motion_family_base.MotionFamily` (``name``,
-``requires``, ``arrays``, ``compute``, ``config``); the registry in ``motion_families`` imports
-them, never the other way round.
+Each class subclasses :class:`~dancedata.pipeline.motion_family_base.MotionFamily` (``inputs``,
+``outputs``, ``arrays``, ``compute``, ``config``) and registers itself
+(:func:`~dancedata.pipeline.family.register_family`).
 
 Every array has one row per frame, like every motion array (featurize writes frame rows):
 
@@ -13,7 +13,8 @@ Every array has one row per frame, like every motion array (featurize writes fra
 * Per-sequence features (kinetic, geometric) are written on every frame of their sequence:
   read row ``frame_start`` of a sequence. Constant rows cost almost nothing once compressed.
 
-Families and the base arrays they read (a store lacking one reports the family absent):
+Families and the arrays they read, from the store or from a family earlier in the same run
+(``positions`` then ``kinematics`` in one run; a run lacking one reports the family absent):
 
 * ``kinematics`` (positions): velocity, acceleration, jerk (m/s, m/s², m/s³ at the store fps),
   motion beats (mint and Bailando variants), kinetic features (3 per joint; 72-d for SMPL-24)
@@ -39,12 +40,14 @@ from dancedata.compute.motion_features import (
 )
 from dancedata.compute.rotations import axis_angle_to_quat
 from dancedata.errors import InputError
+from dancedata.pipeline.family import register_family
 from dancedata.pipeline.motion_family_base import (
     ArraySpec,
     MotionBatch,
     MotionFamily,
     MotionSettings,
 )
+from dancedata.pipeline.source_arrays import source_array
 
 __all__ = ["AngularFamily", "GeometricFamily", "KinematicsFamily", "forward_rows"]
 
@@ -80,11 +83,31 @@ def _up_axis(batch: MotionBatch) -> str:
     return axis if axis in ("y", "z") else "y"
 
 
+def _extension(
+    path: str, row_shape: tuple, dtype: type, attrs: tuple[str, ...], note: str | None = None
+) -> ArraySpec:
+    return ArraySpec(path, row_shape, dtype, required_attrs=attrs, extension=True, note=note)
+
+
+_KINETIC_NOTE = "3 per joint; per sequence, repeated on its frames"
+
+
+@register_family("kinematics")
 class KinematicsFamily(MotionFamily):
     """Derivatives of joint positions, motion beats, kinetic features."""
 
-    name = "kinematics"
-    requires = ("positions",)
+    inputs = (source_array("positions"),)
+    outputs = (
+        _extension("velocity", ("J", 3), np.float32, ("units", "rows")),
+        _extension("acceleration", ("J", 3), np.float32, ("units", "rows")),
+        _extension("jerk", ("J", 3), np.float32, ("units", "rows")),
+        _extension("motion_beats_mint", (), np.uint8, ("variant", "rule")),
+        _extension("motion_beats_bailando", (), np.uint8, ("variant", "rule")),
+        _extension(
+            "kinetic_features", (None,), np.float32, ("mode", "layout", "rows"), _KINETIC_NOTE
+        ),
+        _extension("kinetic_features_corrected", (None,), np.float32, ("mode", "layout", "rows")),
+    )
 
     def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
         joint = (n_joints, 3)
@@ -179,11 +202,15 @@ class KinematicsFamily(MotionFamily):
         }
 
 
+@register_family("angular")
 class AngularFamily(MotionFamily):
     """Angular velocity of each joint's local rotation, and the Laban weight effort."""
 
-    name = "angular"
-    requires = ("axis_angle",)
+    inputs = (source_array("axis_angle"),)
+    outputs = (
+        _extension("angular_velocity", ("J", 3), np.float32, ("units", "rows")),
+        _extension("weight_effort", (), np.float32, ("units", "rows")),
+    )
 
     def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
         return [
@@ -234,11 +261,20 @@ def _is_smpl24(skeleton: dict[str, Any]) -> bool:
     return joints == SMPL_JOINTS or (skeleton.get("name") == "smpl24" and len(joints) == 24)
 
 
+@register_family("geometric")
 class GeometricFamily(MotionFamily):
     """The 32 geometric (Müller) features of SMPL-24 poses, per sequence."""
 
-    name = "geometric"
-    requires = ("positions",)
+    inputs = (source_array("positions"),)
+    outputs = (
+        _extension(
+            "geometric_features",
+            (32,),
+            np.float32,
+            ("definition", "rows"),
+            "SMPL-24 only; per sequence, repeated on its frames",
+        ),
+    )
 
     def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
         return [

@@ -9,8 +9,8 @@
   rebuild them; rigs with position channels below the root stored theirs at ingest from the
   per-frame joint translations and are refused here.
 
-Subclasses :class:`~dancedata.pipeline.motion_family_base.MotionFamily`; the registry in
-``motion_families`` imports it, never the other way round.
+Subclasses :class:`~dancedata.pipeline.motion_family_base.MotionFamily` and registers itself
+(:func:`~dancedata.pipeline.family.register_family`).
 """
 
 from __future__ import annotations
@@ -26,12 +26,14 @@ from dancedata.compute.rotations import axis_angle_to_rotmat
 from dancedata.compute.smpl_joints import smpl_joint_positions
 from dancedata.errors import InputError
 from dancedata.io.smpl_model import SMPL_MODEL_HELP, cached_smpl_model
+from dancedata.pipeline.family import register_family
 from dancedata.pipeline.motion_family_base import (
     ArraySpec,
     MotionBatch,
     MotionFamily,
     MotionSettings,
 )
+from dancedata.pipeline.source_arrays import source_array
 from dancedata.smpl import SMPL_JOINTS
 
 __all__ = ["PositionsFamily", "smpl_model_identity"]
@@ -60,11 +62,12 @@ def _is_smpl(skeleton: dict[str, Any]) -> bool:
     return joints == SMPL_JOINTS or (skeleton.get("name") == "smpl24" and len(joints) == 24)
 
 
+@register_family("positions")
 class PositionsFamily(MotionFamily):
     """World joint positions from joint rotations and the root translation."""
 
-    name = "positions"
-    requires = ("axis_angle", "trans")
+    inputs = (source_array("axis_angle"), source_array("trans"))
+    outputs = (source_array("positions"),)
 
     def arrays(self, n_joints: int, settings: MotionSettings) -> list[ArraySpec]:
         attrs: dict[str, Any] = {"units": "m", "method": "forward kinematics"}
