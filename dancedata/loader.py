@@ -61,9 +61,6 @@ class DanceStore(SequenceReader):
         :func:`dancedata.views.assemble.view_parts`)."""
         return assemble.view_parts(self, name)
 
-    def _require_view_arrays(self, name: str) -> None:
-        assemble.require_view_arrays(self, name)
-
     def weighted_stem_onsets(
         self,
         seq_id: str,
