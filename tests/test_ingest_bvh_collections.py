@@ -189,6 +189,17 @@ def test_two_workers_write_the_same_bytes_as_one(tmp_path: Path) -> None:
 
 
 def test_a_killed_ingest_resumes_with_the_units_it_finished(tmp_path: Path) -> None:
+    _kill_and_resume(tmp_path, workers=1)
+
+
+def test_a_killed_parallel_ingest_resumes_to_the_serial_bytes(tmp_path: Path) -> None:
+    """SIGKILL a --workers 2 run (its worker processes too) once a read task has finished,
+    resume it with --workers 2: the finished tasks are not read again, and the store holds the
+    serial run's bytes."""
+    _kill_and_resume(tmp_path, workers=2)
+
+
+def _kill_and_resume(tmp_path: Path, workers: int) -> None:
     folder = tmp_path / "takes"
     for k in range(48):  # 6 read units
         write_rig(folder / f"take{k:02d}.bvh", rig_clip(k, n_frames=1500))
@@ -197,6 +208,7 @@ def test_a_killed_ingest_resumes_with_the_units_it_finished(tmp_path: Path) -> N
 
     store = tmp_path / "store"
     layout = StoreLayout(store)
+    parallel = ["--workers", str(workers)] if workers > 1 else []
     proc = subprocess.Popen(
         [
             sys.executable,
@@ -208,6 +220,7 @@ def test_a_killed_ingest_resumes_with_the_units_it_finished(tmp_path: Path) -> N
             "--store",
             str(store),
             "-q",
+            *parallel,
         ],  # fmt: skip
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -226,7 +239,7 @@ def test_a_killed_ingest_resumes_with_the_units_it_finished(tmp_path: Path) -> N
     assert layout.temp_dirs(), "the killed run should have left its build behind"
     assert not list((store / "versions").glob("v*"))
 
-    out = run_cli("ingest", "bvh", str(folder), "--store", str(store)).stdout
+    out = run_cli("ingest", "bvh", str(folder), "--store", str(store), *parallel).stdout
     assert "v1" in out
     counts = VersionReader(store).manifest["counts"]
     assert counts["units"] == 6 and 1 <= counts["resumed_units"] < 6, counts
