@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 from dancedata.cli.apps import ingest_app
 from dancedata.cli.common import (
+    Dask,
     Json,
     OnError,
     OnErrorOpt,
@@ -52,6 +53,7 @@ def ingest_aist_cmd(
     ] = None,
     on_error: OnErrorOpt = OnError.fail,
     workers: Workers = 1,
+    dask: Dask = None,
     wait: Wait = False,
     quiet: Quiet = False,
     as_json: Json = False,
@@ -75,6 +77,7 @@ def ingest_aist_cmd(
         on_error=on_error.value,
         wait_for_lock=wait,
         workers=workers,
+        dask=dask,
     )
     from dancedata.store.first_write import remove_store_if_left_empty
 

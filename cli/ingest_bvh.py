@@ -7,7 +7,17 @@ from typing import Annotated
 
 import typer
 from dancedata.cli.apps import ingest_app
-from dancedata.cli.common import Json, OnError, OnErrorOpt, Quiet, Wait, Workers, report, setup
+from dancedata.cli.common import (
+    Dask,
+    Json,
+    OnError,
+    OnErrorOpt,
+    Quiet,
+    Wait,
+    Workers,
+    report,
+    setup,
+)
 
 
 @ingest_app.command("bvh")
@@ -83,6 +93,7 @@ def ingest_bvh_cmd(
         ),
     ] = "declared",
     workers: Workers = 1,
+    dask: Dask = None,
     on_error: OnErrorOpt = OnError.fail,
     wait: Wait = False,
     quiet: Quiet = False,
@@ -113,6 +124,7 @@ def ingest_bvh_cmd(
         glob=glob,
         frames=frames,
         workers=workers,
+        dask=dask,
     )
     from dancedata.store.first_write import remove_store_if_left_empty
 

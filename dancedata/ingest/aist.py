@@ -81,8 +81,10 @@ class AistIngestOptions:
     annotations: list[str] | None = None
     on_error: str = "fail"  # or "skip"
     wait_for_lock: bool = False
-    # Processes reading pickles (not fingerprinted: the bytes do not depend on it).
+    # Processes reading pickles, or a Dask scheduler address / "local:N" (not fingerprinted:
+    # the bytes do not depend on them).
     workers: int = 1
+    dask: str | None = None
 
     def wants(self, kind: str) -> bool:
         return self.annotations is None or kind in self.annotations
@@ -368,6 +370,7 @@ class AistSource(Source):
             sequences_desc="ingest sequences",
             sequences_unit="seq",
             workers=self.options.workers,
+            dask=self.options.dask,
             wait_for_lock=self.options.wait_for_lock,
             empty_error=InputError("every motion was skipped; nothing to ingest", self.raw),
         )

@@ -90,7 +90,8 @@ class BvhIngestOptions:
             or "present" (every row is a frame; each file's declared and read counts go into
             the manifest's counts).
         glob: file-name pattern for folders given as paths (searched recursively).
-        workers: processes reading files (not fingerprinted: the bytes do not depend on it).
+        workers: processes reading files; dask: a Dask scheduler address or "local:N" instead
+            (neither is fingerprinted: the bytes do not depend on them).
     """
 
     units: str = "cm"
@@ -110,6 +111,7 @@ class BvhIngestOptions:
     frames: str = "declared"
     glob: str = DEFAULT_GLOB
     workers: int = 1
+    dask: str | None = None
 
     def settings(self) -> BvhSettings:
         return BvhSettings(
@@ -358,6 +360,7 @@ class BvhSource(Source):
             sequences_unit="file",
             batch_size=READ_BATCH_FILES,
             workers=options.workers,
+            dask=options.dask,
             wait_for_lock=options.wait_for_lock,
             create_store=not options.append,
             empty_error=InputError("every BVH file was skipped; nothing to ingest"),
