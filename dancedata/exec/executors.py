@@ -11,22 +11,52 @@ Functions and units must be picklable (top-level functions, plain data). Units a
 they may run in any order and any number of times (a retried unit redoes its whole work).
 A :class:`~dancedata.errors.DancedataError` (bad input) is never retried; other failures are
 retried up to ``retries`` times before the run fails.
+
+On Dask the retries are counted here, not by the scheduler (whose task ``retries`` would redo
+bad input too); a worker that dies while running a unit is handled by the scheduler (the unit
+moves to another worker, up to its ``allowed-failures``). A cluster that cannot run the units
+ends the run with one line (a :class:`ClusterError`, a DancedataError naming the scheduler):
+no scheduler at the address, the scheduler gone mid-run, or no worker for ``no_workers_timeout``
+seconds. Remote workers get the client's storage environment with every unit
+(:mod:`dancedata.exec.storage_env`), so they reach the store the client means.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
-from collections.abc import Callable, Iterator, Sequence
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import CancelledError
 from typing import Any
 
 from dancedata.errors import DancedataError
+from dancedata.exec.storage_env import apply_storage_env, storage_env
 from dancedata.exec.threads import pin_threads, single_threaded, thread_env
 
 DEFAULT_RETRIES = 2
+# Seconds a Dask run waits with no worker in the cluster before it fails (all lost, none started).
+DEFAULT_NO_WORKERS_TIMEOUT_S = 30.0
+NO_WORKERS_TIMEOUT_ENV = "DANCEDATA_DASK_NO_WORKERS_TIMEOUT"
+# Seconds between looks at the cluster while no unit finishes.
+_POLL_S = 1.0
+# Seconds closing the client may take (the scheduler may be gone).
+_CLOSE_TIMEOUT_S = 10.0
 
 
-def _call(fn: Callable[[Any], Any], item: Any) -> Any:
-    """Run one unit in a worker, with its thread pools pinned (idempotent)."""
+class ClusterError(DancedataError):
+    """The Dask cluster cannot run the units (no scheduler, scheduler gone, no workers): one
+    line naming its address. Not bad input: the units finished so far are sound, so a
+    resumable build may be kept for the next run (``resumable``)."""
+
+    resumable = True
+
+
+def _call(fn: Callable[[Any], Any], item: Any, env: Mapping[str, str] | None = None) -> Any:
+    """Run one unit in a worker, with its thread pools pinned (idempotent) and, when given,
+    the client's storage environment ``env`` applied first."""
+    if env:
+        apply_storage_env(env)
     pin_threads(1)
     return fn(item)
 
@@ -185,11 +215,25 @@ class ProcessExecutor(Executor):
 
 class DaskExecutor(Executor):
     """Units as Dask tasks. ``address`` is a scheduler address (``tcp://host:8786``) or
-    ``local:N`` to start a LocalCluster of N worker processes with one thread each."""
+    ``local:N`` to start a LocalCluster of N worker processes with one thread each.
+
+    ``connect_timeout``: seconds to reach the scheduler (default: Dask's
+    ``distributed.comm.timeouts.connect``, 30 s). ``no_workers_timeout``: seconds the run waits
+    while the cluster has no worker before it fails (default:
+    ``$DANCEDATA_DASK_NO_WORKERS_TIMEOUT``, else 30 s). Every failure of the cluster itself is a
+    one-line DancedataError naming it.
+    """
 
     name = "dask"
 
-    def __init__(self, address: str, *, retries: int = DEFAULT_RETRIES) -> None:
+    def __init__(
+        self,
+        address: str,
+        *,
+        retries: int = DEFAULT_RETRIES,
+        connect_timeout: float | None = None,
+        no_workers_timeout: float | None = None,
+    ) -> None:
         try:
             from distributed import Client, LocalCluster
         except ImportError:
@@ -198,11 +242,17 @@ class DaskExecutor(Executor):
             ) from None
         self.address = address
         self.retries = retries
+        self.no_workers_timeout = (
+            _no_workers_timeout() if no_workers_timeout is None else float(no_workers_timeout)
+        )
         self._cluster = None
+        self.client: Any = None
         if address.startswith("local:"):
-            n = int(address.split(":", 1)[1] or 1)
+            text = address.split(":", 1)[1] or "1"
+            if not text.isdigit() or int(text) < 1:
+                raise DancedataError(f"--dask {address}: local:N needs a whole number N ≥ 1")
             self._cluster = LocalCluster(
-                n_workers=n,
+                n_workers=int(text),
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=None,
@@ -210,33 +260,221 @@ class DaskExecutor(Executor):
             )
             self.client = Client(self._cluster)
         else:
-            self.client = Client(address)
-        self.client.run(pin_threads, 1)
-        self.workers = len(self.client.scheduler_info().get("workers", {})) or 1
+            self.client = self._connect(Client, address, connect_timeout)
+        try:
+            with self._talking():
+                self.client.run(pin_threads, 1)
+                n_workers = self.n_workers()
+        except DancedataError:
+            self.close()
+            raise
+        self.workers = n_workers or 1
+        self.started_with_workers = n_workers > 0
+
+    def _connect(self, client_cls: Any, address: str, timeout: float | None) -> Any:
+        """A client of the scheduler at ``address``, or a one-line error naming it."""
+        problem = _address_problem(address)
+        if problem:
+            # Checked before a Client exists: one that fails in its constructor stays alive
+            # until the interpreter exits, and closing it then prints a traceback of its own.
+            raise self._error(f"not a scheduler address ({problem})")
+        options: dict[str, Any] = {"set_as_default": False}
+        if timeout is not None:  # else Dask's distributed.comm.timeouts.connect
+            options["timeout"] = timeout
+        try:
+            return client_cls(address, **options)
+        except (OSError, TimeoutError) as exc:
+            # distributed: "Timed out trying to connect to tcp://h:p after 30 s"
+            raise self._error(f"no scheduler answers ({_first_line(exc)})") from None
+
+    def _error(self, problem: str) -> ClusterError:
+        return ClusterError(f"the Dask cluster at {self.address}: {problem}")
 
     def map_unordered(
         self, fn: Callable[[Any], Any], items: Sequence[Any]
     ) -> Iterator[tuple[int, Any]]:
-        from distributed import as_completed
+        from distributed import KilledWorker
 
-        futures = {
-            self.client.submit(_call, fn, item, retries=self.retries, pure=False): index
-            for index, item in enumerate(items)
-        }
+        env = storage_env()
+        attempts = [0] * len(items)
+        pending: dict[Any, int] = {}
+
+        def submit(index: int) -> None:
+            # No scheduler-side retries: they would redo bad input too (see below).
+            with self._talking():
+                future = self.client.submit(_call, fn, items[index], env, pure=False)
+            pending[future] = index
+
+        watch = _WorkerWatch(self, n_units=len(items))
         try:
-            for future in as_completed(futures):
-                yield futures[future], future.result()
+            for index in range(len(items)):
+                submit(index)
+            while pending:
+                done = self._wait_some(list(pending))
+                if not done:
+                    watch.check(len(pending))
+                    continue
+                for future in done:
+                    index = pending.pop(future)
+                    if future.status == "cancelled":
+                        raise self._cancelled(len(pending) + 1)
+                    if future.status == "error":
+                        exc = future.exception()
+                        if isinstance(exc, KilledWorker):
+                            raise self._error(
+                                f"a work unit killed {exc.allowed_failures + 1} workers in turn "
+                                "(each died while running it: out of memory?); see the "
+                                "workers' logs"
+                            ) from None
+                        if isinstance(exc, DancedataError):
+                            future.result()  # bad input: never retried, raised as it is
+                        attempts[index] += 1
+                        if attempts[index] > self.retries:
+                            future.result()
+                        submit(index)
+                        continue
+                    yield index, future.result()
         finally:
-            for future in futures:
-                future.cancel()
+            if pending and self.client.status == "running":
+                # Best effort, while failing already.
+                with contextlib.suppress(Exception):
+                    self.client.cancel(list(pending))
+
+    @contextlib.contextmanager
+    def _talking(self) -> Iterator[None]:
+        """Around a call to the scheduler: a broken connection becomes one line naming it."""
+        try:
+            yield
+        except (OSError, TimeoutError) as exc:
+            raise self._error(
+                f"lost the connection to the scheduler ({_first_line(exc)})"
+            ) from None
+
+    def _wait_some(self, futures: list[Any]) -> set[Any]:
+        """The futures that finish (or are cancelled) within the poll interval; maybe none."""
+        from distributed import wait
+
+        with self._talking(), self.client.as_current():
+            try:
+                return set(wait(futures, timeout=_POLL_S, return_when="FIRST_COMPLETED").done)
+            except TimeoutError:
+                return set()
+            except CancelledError:  # distributed raises for cancelled futures among the done
+                return {f for f in futures if f.done()}
+
+    def n_workers(self) -> int:
+        """Workers in the cluster now (asks the scheduler)."""
+        with self._talking():
+            return len(self.client.nthreads())
+
+    def _cancelled(self, left: int) -> ClusterError:
+        if self.client.status != "running":
+            return self._error(f"lost the connection to the scheduler; {left} work units not done")
+        return self._error(f"a work unit was cancelled on the cluster; {left} work units not done")
 
     def close(self) -> None:
-        self.client.close()
+        if self.client is not None:
+            # With the scheduler gone, closing cancels the client's attempts to reconnect, which
+            # Dask logs as an error with a traceback: the run has said what happened already.
+            lost = self.client.status != "running"
+            with (
+                _silenced("distributed.client", "distributed.utils") if lost else _nothing(),
+                contextlib.suppress(OSError, TimeoutError),
+            ):
+                self.client.close(timeout=_CLOSE_TIMEOUT_S)
         if self._cluster is not None:
             self._cluster.close()
 
     def describe(self) -> dict[str, Any]:
         return {"engine": self.name, "workers": self.workers, "address": self.address}
+
+
+class _WorkerWatch:
+    """Fails a Dask run that has had no worker for ``no_workers_timeout`` seconds.
+
+    The scheduler keeps tasks without a worker waiting forever (unless its own
+    ``no-workers-timeout`` is set, which a client cannot rely on), so the client looks.
+    """
+
+    def __init__(self, executor: DaskExecutor, n_units: int) -> None:
+        self.executor = executor
+        self.n_units = n_units
+        self.had_workers = executor.started_with_workers
+        self.empty_since: float | None = None
+
+    def check(self, left: int) -> None:
+        """Called while no unit finishes: raises once the cluster has had no worker for
+        ``no_workers_timeout`` seconds."""
+        now = time.monotonic()
+        if self.executor.n_workers():
+            self.had_workers = True
+            self.empty_since = None
+            return
+        if self.empty_since is None:
+            self.empty_since = now
+        limit = self.executor.no_workers_timeout
+        if now - self.empty_since >= limit:
+            gone = "no workers left" if self.had_workers else "no workers"
+            raise self.executor._error(
+                f"{gone} for {limit:g} s; {left} of {self.n_units} work units not done"
+            )
+
+
+def _no_workers_timeout() -> float:
+    text = os.environ.get(NO_WORKERS_TIMEOUT_ENV, "").strip()
+    if not text:
+        return DEFAULT_NO_WORKERS_TIMEOUT_S
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value > 0:
+        raise DancedataError(f"{NO_WORKERS_TIMEOUT_ENV}={text!r}: give seconds, a number > 0")
+    return value
+
+
+def _address_problem(address: str) -> str | None:
+    """Why ``address`` is not a Dask scheduler address (unknown protocol, bad port), or None."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import get_backend
+
+    try:
+        scheme, location = parse_address(address)
+        get_backend(scheme)
+        if scheme in ("tcp", "tls"):
+            host, port = parse_host_port(location, 8786)
+            if not host:
+                return "no host"
+            if not 0 < port < 65536:
+                return f"port {port} outside 1-65535"
+    except ValueError as exc:
+        return _first_line(exc)
+    return None
+
+
+@contextlib.contextmanager
+def _silenced(*names: str) -> Iterator[None]:
+    """No log records from the loggers ``names`` inside the block."""
+    import logging
+
+    loggers = [logging.getLogger(name) for name in names]
+    saved = [logger.disabled for logger in loggers]
+    for logger in loggers:
+        logger.disabled = True
+    try:
+        yield
+    finally:
+        for logger, disabled in zip(loggers, saved, strict=True):
+            logger.disabled = disabled
+
+
+def _nothing() -> contextlib.AbstractContextManager[None]:
+    return contextlib.nullcontext()
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text.splitlines()[0]
 
 
 def make_executor(
