@@ -61,7 +61,7 @@ def umx_weights(folder: Path, hidden: int) -> Path:
     from openunmix.model import OpenUnmix
     from openunmix.utils import bandwidth_to_max_bin
 
-    from dancedata.compute.stems_openunmix import MODELS
+    from dancedata.io.openunmix_weights import MODELS
 
     max_bin = int(bandwidth_to_max_bin(rate=44100.0, n_fft=4096, bandwidth=16000))
     target = folder / "umxhq"

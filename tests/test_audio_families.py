@@ -221,7 +221,7 @@ def _save_umx(folder: Path, scale: dict[str, float]) -> None:
     torch = _torch()
     from openunmix.model import OpenUnmix
 
-    from dancedata.compute.stems_openunmix import MODELS
+    from dancedata.io.openunmix_weights import MODELS
 
     folder.mkdir(parents=True, exist_ok=True)
     for stem, file_name in MODELS["umxhq"]["files"].items():
@@ -258,7 +258,7 @@ def test_openunmix_family_end_to_end(raw, tmp_path, monkeypatch) -> None:
         # stems reach the feature rate afterwards; the file is read here by soundfile directly.
         import soundfile as sf
 
-        from dancedata.compute.stems_openunmix import separate_channels
+        from dancedata.compute.stems.openunmix import separate_channels
 
         native, native_sr = sf.read(music["path"], dtype="float32", always_2d=True)
         stems, _ = separate_channels(

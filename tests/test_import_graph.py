@@ -104,9 +104,6 @@ KNOWN_VIOLATIONS: tuple[str, ...] = (
     # and the remote commit logic is a copy; one backend protocol removes the circle.
     "cycle: dancedata.store.build <-> dancedata.store.integrity <-> dancedata.store.layout"
     " <-> dancedata.store.remote <-> dancedata.store.writer",
-    # item 4: compute/stems becomes a package with its backends below it.
-    "cycle: dancedata.compute.stems <-> dancedata.compute.stems_offline"
-    " <-> dancedata.compute.stems_openunmix",
 )
 
 

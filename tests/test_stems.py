@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from dancedata.compute import stems_offline
+from dancedata.compute.stems import offline as stems_offline
 from dancedata.compute.stems import (
     STEM_BACKENDS,
     STEM_NAMES,
@@ -155,6 +155,15 @@ def test_backend_config_names_every_setting() -> None:
     assert config["backend"] == "offline" and config["bass_cutoff_hz"] == 150.0
     assert set(config) == {"backend", *stems_offline.DEFAULTS}
     json.dumps(config)  # goes into manifests and Zarr attrs as is
+
+
+def test_openunmix_weight_targets_are_the_stem_names_in_order() -> None:
+    """io's weight lookup names its four targets itself (io imports nothing of compute); they
+    must be the stems every backend returns, in the same order (missing files are listed so)."""
+    from dancedata.io.openunmix_weights import MODELS, TARGETS
+
+    assert TARGETS == STEM_NAMES
+    assert all(set(spec["files"]) == set(STEM_NAMES) for spec in MODELS.values())
 
 
 def test_importing_and_offline_separation_never_import_torch() -> None:

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dancedata.compute import stems_openunmix as umx
+from dancedata.compute.stems import openunmix as umx
 from dancedata.compute.stems import STEM_NAMES, separate
 from dancedata.errors import DancedataError, InputError
 from tests.helpers import importorskip_unless_ci

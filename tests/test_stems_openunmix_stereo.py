@@ -19,7 +19,7 @@ import soundfile as sf
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dancedata.compute import stems_openunmix as umx
+from dancedata.compute.stems import openunmix as umx
 from dancedata.compute.stem_features import all_stem_features
 from dancedata.compute.stems import STEM_NAMES
 from dancedata.errors import InputError

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from dancedata.compute.stems import STEM_NAMES, to_mono
+from dancedata.compute.stems.base import STEM_NAMES, to_mono
 
 DEFAULTS: dict[str, Any] = {
     "n_fft": 2048,

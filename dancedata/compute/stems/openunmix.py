@@ -3,27 +3,15 @@
 Needs the optional extra ``dancedata[stems]`` (torch, torchaudio, openunmix); everything here
 imports them lazily, so ``import dancedata`` never loads torch. The network architecture and the
 multichannel Wiener filter are those of the ``openunmix`` package (``openunmix.model.OpenUnmix``
-and ``Separator``); this module only finds the weights, builds the models from their state dicts
-and runs them in chunks.
+and ``Separator``); this module builds the models from their state dicts and runs them in chunks.
 
-Weights are never downloaded: there may be no network, and a silent multi-hundred-MB download is
-not something a featurize run should do. For model ``M`` and stem ``t`` the file is the published
-file name (see :data:`MODELS`), looked up in this order:
-
-1. ``weights_dir/M/<published name>`` or ``weights_dir/M/<t>.pth``
-2. ``weights_dir/<published name>``
-3. the torch hub cache, ``torch.hub.get_dir()/checkpoints/<published name>`` (where
-   ``openunmix``'s own hub loader leaves them after an online run)
-
-When a file is missing, :class:`~dancedata.errors.InputError` lists every missing file, its URL and
-the folders it may go in. The architecture (hidden size, layers, bins, channels) is read from the
-state dict, so any OpenUnmix-shaped weights load.
-
-An **OpenUnmix model folder** as ``openunmix`` writes and reads it (``separator.json`` with
-``sample_rate``, ``nfft``, ``nhop``, ``nb_channels``, next to ``<target>.pth`` or
-``<target>-<hash>.pth``) is recognised by its ``separator.json`` and read with its settings,
-whatever ``model`` says; without one, the published models' settings apply (44.1 kHz, n_fft
-from the weights, hop n_fft / 4).
+The weight files are found and read by :mod:`dancedata.io.openunmix_weights` (never downloaded;
+``weights_dir``, then the torch hub cache; :data:`MODELS`, :func:`find_weights` and
+:func:`hub_checkpoint_dir` are re-exported here for callers). The architecture (hidden size,
+layers, bins, channels) is read from the state dict, so any OpenUnmix-shaped weights load. From
+an OpenUnmix model folder (one with ``separator.json``) the separator runs with that file's
+settings, whatever ``model`` says; without one, the published models' settings apply (44.1 kHz,
+n_fft from the weights, hop n_fft / 4).
 
 What the model sees (:func:`separate_channels`): the input's own channels at the model rate,
 as ``openunmix.utils.preprocess`` feeds them (mono duplicated, only the first two of more;
@@ -54,32 +42,18 @@ from typing import Any
 
 import numpy as np
 
-from dancedata.compute.stems import STEM_NAMES
-from dancedata.errors import DancedataError, InputError
+from dancedata.errors import InputError
+from dancedata.io.openunmix_weights import (
+    MODELS,  # noqa: F401 - re-exported for callers
+    find_weights,
+    hub_checkpoint_dir,  # noqa: F401 - re-exported for callers
+    import_torch,
+    is_model_folder,
+    read_separator_json,
+    read_state_dict,
+)
 
 MODEL_SAMPLE_RATE = 44100
-EXTRA_HINT = "pip install 'dancedata[stems]' (torch, torchaudio, openunmix)"
-
-MODELS: dict[str, dict[str, Any]] = {
-    "umxhq": {
-        "url": "https://zenodo.org/records/3370489/files/",
-        "files": {
-            "bass": "bass-8d85a5bd.pth",
-            "drums": "drums-9619578f.pth",
-            "other": "other-b52fbbf7.pth",
-            "vocals": "vocals-b62c91ce.pth",
-        },
-    },
-    "umxl": {
-        "url": "https://zenodo.org/records/5069601/files/",
-        "files": {
-            "bass": "bass-2ca1ce51.pth",
-            "drums": "drums-69e0ebd4.pth",
-            "other": "other-c8c5b3e6.pth",
-            "vocals": "vocals-bccbd9aa.pth",
-        },
-    },
-}
 
 DEFAULTS: dict[str, Any] = {
     "model": "umxhq",
@@ -101,149 +75,11 @@ MB_PER_STFT_VALUE = 1.5e-4
 FIXED_MB = 100.0
 
 
-def _import_torch() -> Any:
-    try:
-        import openunmix.model  # noqa: F401
-        import torch
-    except ImportError as exc:
-        raise DancedataError(
-            f"stem backend 'openunmix' needs the optional extra: {EXTRA_HINT} ({exc})"
-        ) from exc
-    except OSError as exc:  # e.g. a CUDA torchaudio next to a CPU-only torch
-        raise DancedataError(
-            "stem backend 'openunmix': torchaudio does not load with this torch "
-            f"({exc}); install matching builds, e.g. torch==2.14.1 torchaudio==2.11.0"
-        ) from exc
-    return torch
-
-
-def hub_checkpoint_dir() -> Path:
-    """The torch hub cache folder for weight files (``torch.hub.get_dir()/checkpoints``)."""
-    return Path(_import_torch().hub.get_dir()) / "checkpoints"
-
-
-SEPARATOR_JSON = "separator.json"
-
-
-def is_model_folder(weights_dir: str | Path | None) -> bool:
-    """Whether ``weights_dir`` is an OpenUnmix model folder as ``openunmix`` itself writes and
-    loads them (``separator.json`` next to ``<target>.pth``)."""
-    return weights_dir is not None and (Path(weights_dir).expanduser() / SEPARATOR_JSON).is_file()
-
-
-def read_separator_json(weights_dir: str | Path) -> dict[str, Any]:
-    """The STFT and audio settings of an OpenUnmix model folder's ``separator.json``:
-    {"sample_rate" (Hz), "nfft", "nhop" (samples), "nb_channels"}, checked."""
-    import json
-
-    path = Path(weights_dir).expanduser() / SEPARATOR_JSON
-    try:
-        conf = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read OpenUnmix separator settings ({exc})", path) from None
-    need = {"sample_rate": float, "nfft": int, "nhop": int, "nb_channels": int}
-    if not isinstance(conf, dict) or any(key not in conf for key in need):
-        raise InputError(f"separator.json needs keys {', '.join(need)}", path)
-    try:
-        out = {key: kind(conf[key]) for key, kind in need.items()}
-    except (TypeError, ValueError):
-        raise InputError(
-            "separator.json: sample_rate, nfft, nhop, nb_channels must be numbers", path
-        ) from None
-    if out["sample_rate"] <= 0 or out["nfft"] < 2 or not 0 < out["nhop"] <= out["nfft"]:
-        raise InputError(f"separator.json: implausible settings {out}", path)
-    if out["nb_channels"] not in (1, 2):
-        raise InputError(
-            f"separator.json: nb_channels must be 1 or 2, got {out['nb_channels']}", path
-        )
-    return out
-
-
-def _model_folder_weights(root: Path) -> dict[str, Path]:
-    """{stem: path} in an OpenUnmix model folder: ``<stem>.pth``, else the one ``<stem>*.pth``
-    (openunmix's own loader takes ``<target>*.pth``, e.g. ``vocals-b62c91ce.pth``)."""
-    found: dict[str, Path] = {}
-    missing: list[str] = []
-    for stem in STEM_NAMES:
-        exact = root / f"{stem}.pth"
-        matches = [exact] if exact.is_file() else sorted(root.glob(f"{stem}*.pth"))
-        if len(matches) > 1:
-            raise InputError(
-                f"OpenUnmix model folder has several {stem} weight files "
-                f"({', '.join(m.name for m in matches)}); keep one",
-                root,
-            )
-        if matches:
-            found[stem] = matches[0]
-        else:
-            missing.append(f"{stem}.pth")
-    if missing:
-        raise InputError(
-            f"OpenUnmix model folder (it has {SEPARATOR_JSON}) lacks {', '.join(missing)}: "
-            "dancedata needs all four stems (drums, bass, vocals, other)",
-            root,
-        )
-    return found
-
-
-def find_weights(model: str = "umxhq", weights_dir: str | Path | None = None) -> dict[str, Path]:
-    """Path of each stem's weight file, {stem: path}; raises InputError naming every missing file.
-
-    See the module docstring for the search order. An OpenUnmix model folder (one with
-    ``separator.json``) is read as ``openunmix`` reads it, whatever ``model`` says. Cheap: no
-    weights are read.
-    """
-    if is_model_folder(weights_dir):
-        return _model_folder_weights(Path(weights_dir).expanduser())  # type: ignore[arg-type]
-    if model not in MODELS:
-        raise InputError(f"unknown OpenUnmix model {model!r}; choose one of {', '.join(MODELS)}")
-    spec = MODELS[model]
-    folders: list[Path] = []
-    if weights_dir is not None:
-        root = Path(weights_dir).expanduser()
-        if not root.is_dir():
-            raise InputError("OpenUnmix weights folder does not exist", root)
-        folders += [root / model, root]
-    hub = hub_checkpoint_dir()
-    folders.append(hub)
-
-    found: dict[str, Path] = {}
-    missing: list[str] = []
-    for stem in STEM_NAMES:
-        name = spec["files"][stem]
-        candidates = [folder / name for folder in folders]
-        if weights_dir is not None:
-            candidates.insert(1, Path(weights_dir).expanduser() / model / f"{stem}.pth")
-        hit = next((path for path in candidates if path.is_file()), None)
-        if hit is None:
-            missing.append(name)
-        else:
-            found[stem] = hit
-    if missing:
-        where = (
-            f"{Path(weights_dir).expanduser() / model}/ (--stems-weights) or {hub}/"
-            if weights_dir is not None
-            else f"a folder given as --stems-weights DIR (as DIR/{model}/) or {hub}/"
-        )
-        raise InputError(
-            f"OpenUnmix {model!r} weights missing: {', '.join(missing)}. Nothing is downloaded "
-            f"automatically: fetch each from {spec['url']}<file name> and put them in {where}",
-            weights_dir,
-        )
-    return found
-
-
-def _build_target(path: Path, torch: Any) -> Any:
+def _build_target(path: Path) -> Any:
     """One OpenUnmix target model, its shape read from the state dict at ``path``."""
     from openunmix.model import OpenUnmix
 
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # noqa: BLE001 - any unpickling failure means a bad file
-        raise InputError(f"cannot read OpenUnmix weights ({exc})", path) from exc
-    need = ("fc1.weight", "input_mean", "output_mean", "lstm.weight_ih_l0")
-    if not isinstance(state, dict) or any(key not in state for key in need):
-        raise InputError("not an OpenUnmix state dict (needs fc1, lstm, input/output_mean)", path)
+    state = read_state_dict(path)
     max_bin = int(state["input_mean"].shape[0])
     nb_bins = int(state["output_mean"].shape[0])
     hidden, fc1_in = (int(v) for v in state["fc1.weight"].shape)
@@ -270,10 +106,10 @@ def _cached_separator(
     wiener_win_len: int | None,
     stft: tuple[float, int, int, int] | None,
 ) -> Any:
-    torch = _import_torch()
+    import_torch()
     from openunmix.model import Separator
 
-    targets = {stem: _build_target(Path(path), torch) for stem, path, _ in paths}
+    targets = {stem: _build_target(Path(path)) for stem, path, _ in paths}
     shapes = {(t.nb_output_bins, t.fc1.in_features // t.nb_bins) for t in targets.values()}
     if len(shapes) != 1:
         raise InputError(f"OpenUnmix stem models disagree in bins/channels: {sorted(shapes)}")
@@ -317,7 +153,7 @@ def load_separator(
     (as ``openunmix.utils.load_separator`` reads them); otherwise 44.1 kHz, n_fft from the
     weights' bins and hop n_fft / 4 (the published models' settings).
     """
-    torch = _import_torch()
+    torch = import_torch()
     if device == "auto":
         device = "cuda" if torch.cuda.is_available() else "cpu"
     files = find_weights(model, weights_dir)
@@ -449,7 +285,7 @@ def run_chunked(
     inverse can come out inf/NaN. A chunk whose estimate is not finite is run again without the
     EM step (plain ratio masks, ``niter`` 0), with a warning, rather than failing the track.
     """
-    torch = _import_torch()
+    torch = import_torch()
     n_samples = audio.shape[-1]
     bounds = chunk_bounds(n_samples, chunk, overlap, align)
     out = np.zeros((len(separator.target_models), n_samples), dtype=np.float32)

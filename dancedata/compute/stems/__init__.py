@@ -9,13 +9,16 @@ Backends (:data:`STEM_BACKENDS`):
 ``offline``
     No model weights: harmonic/percussive separation plus frequency bands and a repetition
     (REPET-SIM) mask. The four stems sum to the input. An approximation, see
-    :mod:`dancedata.compute.stems_offline`.
+    :mod:`dancedata.compute.stems.offline`.
 ``openunmix``
     The OpenUnmix network (Stöter et al. 2019), pretrained ``umxhq`` or ``umxl`` weights read from a
     local folder or the torch hub cache. Needs the optional extra ``dancedata[stems]``; see
-    :mod:`dancedata.compute.stems_openunmix`.
+    :mod:`dancedata.compute.stems.openunmix`;
+    the weight files are found and read by :mod:`dancedata.io.openunmix_weights`.
 
-Backends are imported only when used, so importing this module never imports torch.
+The backends are modules of this package; what they share (:data:`STEM_NAMES`, :func:`check_audio`,
+:func:`to_mono`) is in :mod:`dancedata.compute.stems.base` below them, so no backend imports this
+dispatcher. Backends are imported only when used, so importing this module never imports torch.
 """
 
 from __future__ import annotations
@@ -25,56 +28,32 @@ from typing import Any
 
 import numpy as np
 
+from dancedata.compute.stems.base import STEM_NAMES, check_audio, to_mono
 from dancedata.errors import InputError
 
-STEM_NAMES: tuple[str, ...] = ("drums", "bass", "vocals", "other")
+__all__ = [
+    "DEFAULT_BACKEND",
+    "STEM_BACKENDS",
+    "STEM_NAMES",
+    "backend_config",
+    "check_audio",
+    "separate",
+    "to_mono",
+]
+
 STEM_BACKENDS: tuple[str, ...] = ("offline", "openunmix")
 DEFAULT_BACKEND = "offline"
-
-_MAX_CHANNELS = 8
-
-
-def check_audio(y: np.ndarray, sr: float) -> np.ndarray:
-    """Validate a waveform: (samples,) or (channels, samples), finite, sr > 0 Hz.
-
-    Returns float32, same shape; integer PCM is scaled so that full scale is ±1. Raises
-    :class:`InputError` on anything else.
-    """
-    if not np.isfinite(sr) or sr <= 0:
-        raise InputError(f"sample rate must be a positive number of Hz, got {sr}")
-    audio = np.asarray(y)
-    if audio.ndim not in (1, 2) or (audio.ndim == 2 and not 1 <= audio.shape[0] <= _MAX_CHANNELS):
-        raise InputError(
-            f"audio must have shape (samples,) or (channels<={_MAX_CHANNELS}, samples), "
-            f"got {audio.shape}"
-        )
-    if audio.shape[-1] == 0:
-        raise InputError("audio is empty (0 samples)")
-    if np.issubdtype(audio.dtype, np.integer):  # PCM: full scale → ±1
-        audio = audio / float(np.iinfo(audio.dtype).max)
-    elif not np.issubdtype(audio.dtype, np.floating):
-        raise InputError(f"audio must be integer PCM or float, got dtype {audio.dtype}")
-    audio = audio.astype(np.float32, copy=False)
-    if not np.all(np.isfinite(audio)):
-        raise InputError("audio contains NaN or infinite samples")
-    return audio
-
-
-def to_mono(y: np.ndarray) -> np.ndarray:
-    """(samples,) or (channels, samples) → (samples,) float32, averaging the channels."""
-    audio = np.asarray(y, dtype=np.float32)
-    return audio if audio.ndim == 1 else audio.mean(axis=0)
 
 
 def _backend_module(backend: str) -> Any:
     if backend == "offline":
-        from dancedata.compute import stems_offline
+        from dancedata.compute.stems import offline
 
-        return stems_offline
+        return offline
     if backend == "openunmix":
-        from dancedata.compute import stems_openunmix
+        from dancedata.compute.stems import openunmix
 
-        return stems_openunmix
+        return openunmix
     raise InputError(f"unknown stem backend {backend!r}; choose one of {', '.join(STEM_BACKENDS)}")
 
 
