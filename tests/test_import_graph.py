@@ -100,10 +100,6 @@ FORBIDDEN_SIDEWAYS: dict[tuple[str, str], str] = {
 
 # Not fixed yet. Each line names the issue-15 item that removes it; delete the line when it does.
 KNOWN_VIOLATIONS: tuple[str, ...] = (
-    # item 1 (one storage interface): the base classes pick their remote subclass in __new__
-    # and the remote commit logic is a copy; one backend protocol removes the circle.
-    "cycle: dancedata.store.build <-> dancedata.store.integrity <-> dancedata.store.layout"
-    " <-> dancedata.store.remote <-> dancedata.store.writer",
 )
 
 

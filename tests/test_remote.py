@@ -157,3 +157,38 @@ def test_featurize_on_s3_resumes_after_a_crash(stores, monkeypatch, tmp_path):
     remote = dancedata.open_store(url)
     for name in local.array_names():
         assert np.array_equal(remote.zarr(name)[...], local.zarr(name)[...], equal_nan=True), name
+
+
+def test_remote_versions_get_the_same_checksums_record_as_local_ones(stores):
+    """Issue 15 item 1: one commit path, so checksums.json is written on S3 exactly as on disk;
+    the arrays are byte-identical, so their recorded hashes are too, and a zeroed chunk is
+    caught by the deep check."""
+    from dancedata.store.integrity import check_record, load_record
+
+    remote, local = StoreLayout(stores["url"]), StoreLayout(stores["local"])
+    for version in ("v1", "v2", "v3"):
+        mine, theirs = load_record(remote.version_backend(version)), load_record(
+            local.version_backend(version)
+        )
+        assert mine is not None, version
+        assert mine["algorithm"] == "sha256" and mine["record_version"] == 2
+        assert set(mine["files"]) == set(theirs["files"]), version
+        zarr_files = [rel for rel in theirs["files"] if rel.startswith("data.zarr/")]
+        assert zarr_files
+        for rel in zarr_files:
+            assert mine["files"][rel] == theirs["files"][rel], (version, rel)
+        assert check_record(remote.version_backend(version), deep=True) == []
+    # a copy of v1 under another prefix, with one chunk zeroed (same size): caught only deep
+    fs = s3fs.S3FileSystem()
+    fs.invalidate_cache()
+    source = f"{BUCKET}/stores/demo/versions/v1"
+    copy = f"{BUCKET}/stores/zeroed/versions/v1"
+    fs.copy(source, copy, recursive=True)
+    chunk = next(r for r in sorted(load_record(local.version_backend("v1"))["files"])
+                 if r.startswith("data.zarr/motion/") and "/c/" in r)
+    size = fs.size(f"{copy}/{chunk}")
+    fs.pipe_file(f"{copy}/{chunk}", bytes(size))
+    zeroed = StoreLayout(f"s3://{BUCKET}/stores/zeroed").version_backend("v1")
+    assert check_record(zeroed, deep=False) == []
+    problems = check_record(zeroed, deep=True)
+    assert len(problems) == 1 and chunk in problems[0] and "sha256 differs" in problems[0]

@@ -16,19 +16,23 @@ from __future__ import annotations
 
 import io
 import json
-import os
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dancedata.store.fs import is_remote, local_path, remote_fs, zarr_store
-from dancedata.store.layout import ZARR_DIR, write_json_atomic
+from dancedata.store.backend import StoreBackend, json_bytes
+from dancedata.store.backend_open import make_backend
+from dancedata.store.layout import ZARR_DIR
 
 BUILD_DIR = ".build"
 PREPARED_FILE = "prepared.json"
+
+
+@lru_cache(maxsize=16)
+def _backend_of(root: str) -> StoreBackend:
+    return make_backend(root)
 
 
 @dataclass(frozen=True)
@@ -38,15 +42,12 @@ class BuildArea:
     root: str
 
     @property
-    def remote(self) -> bool:
-        return is_remote(self.root)
+    def backend(self) -> StoreBackend:
+        """The storage of this area (rooted at the temporary version)."""
+        return _backend_of(self.root)
 
-    def _local(self, rel: str) -> Path:
-        return local_path(self.root) / BUILD_DIR / rel
-
-    def _remote(self, rel: str) -> tuple[Any, str]:
-        fs, base = remote_fs(self.root)
-        return fs, f"{base}/{BUILD_DIR}/{rel}"
+    def _key(self, rel: str) -> str:
+        return f"{BUILD_DIR}/{rel}"
 
     # -- zarr ----------------------------------------------------------------------------------
     def zarr_location(self) -> str:
@@ -54,43 +55,24 @@ class BuildArea:
 
     def open_array(self, name: str) -> Any:
         """The version's array ``name`` (e.g. ``motion/rotmat``), open for writing regions."""
-        return _open_array(self.zarr_location(), name)
+        return _open_array(self.root, name)
 
     # -- small JSON records --------------------------------------------------------------------
     def write_json(self, rel: str, value: Any) -> None:
         """Write ``.build/<rel>`` atomically (rename locally, one PUT remotely)."""
-        if self.remote:
-            fs, path = self._remote(rel)
-            fs.pipe_file(path, json.dumps(value, sort_keys=True).encode())
-            return
-        path = self._local(rel)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(path, value)
+        self.backend.write_bytes(self._key(rel), json_bytes(value))
 
     def read_json(self, rel: str) -> Any | None:
         """``.build/<rel>`` parsed, or None when absent or unreadable (a torn write)."""
         try:
-            if self.remote:
-                fs, path = self._remote(rel)
-                return json.loads(fs.cat_file(path))
-            return json.loads(self._local(rel).read_text(encoding="utf-8"))
+            return json.loads(self.backend.read_bytes(self._key(rel)))
         except (OSError, ValueError):
             return None
 
     def read_all_json(self, rel_dir: str) -> dict[str, Any]:
         """Every ``.build/<rel_dir>/<name>.json``, keyed by name (unreadable ones left out)."""
-        names: list[str] = []
-        if self.remote:
-            fs, path = self._remote(rel_dir)
-            fs.invalidate_cache()
-            if fs.exists(path):
-                names = [p.rsplit("/", 1)[-1] for p in fs.ls(path, detail=False)]
-        else:
-            folder = self._local(rel_dir)
-            if folder.is_dir():
-                names = [p.name for p in folder.iterdir()]
         found: dict[str, Any] = {}
-        for name in sorted(names):
+        for name in self.backend.list_dir(self._key(rel_dir)):
             if name.endswith(".json") and not name.startswith("."):
                 value = self.read_json(f"{rel_dir}/{name}")
                 if value is not None:
@@ -100,24 +82,12 @@ class BuildArea:
     # -- array outputs -------------------------------------------------------------------------
     def save_array(self, rel: str, values: np.ndarray) -> None:
         """Write ``.build/<rel>`` as .npy (the unit's marker, written later, vouches for it)."""
-        if self.remote:
-            fs, path = self._remote(rel)
-            buffer = io.BytesIO()
-            np.save(buffer, values, allow_pickle=False)
-            fs.pipe_file(path, buffer.getvalue())
-            return
-        path = self._local(rel)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".tmp-{path.name}.{os.getpid()}")
-        with open(tmp, "wb") as handle:
-            np.save(handle, values, allow_pickle=False)
-        os.replace(tmp, path)
+        buffer = io.BytesIO()
+        np.save(buffer, values, allow_pickle=False)
+        self.backend.write_bytes(self._key(rel), buffer.getbuffer(), durable=False)
 
     def load_array(self, rel: str) -> np.ndarray:
-        if self.remote:
-            fs, path = self._remote(rel)
-            return np.load(io.BytesIO(fs.cat_file(path)), allow_pickle=False)
-        return np.load(self._local(rel), allow_pickle=False)
+        return np.load(io.BytesIO(self.backend.read_bytes(self._key(rel))), allow_pickle=False)
 
     def save_blob(self, rel: str, arrays: dict[str, np.ndarray]) -> dict[str, list[Any]]:
         """Write several arrays back to back as one raw file ``.build/<rel>`` (no compression,
@@ -135,18 +105,8 @@ class BuildArea:
             index[key] = [offset, value.dtype.str, list(value.shape)]
             parts.append(value)
             offset += value.nbytes + (-value.nbytes) % 64  # 64-byte aligned starts
-        if self.remote:
-            fs, path = self._remote(rel)
-            fs.pipe_file(path, b"".join(b for p in parts for b in _chunks(p)))
-            return index
-        path = self._local(rel)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".tmp-{path.name}.{os.getpid()}")
-        with open(tmp, "wb") as handle:
-            for part in parts:
-                for piece in _chunks(part):
-                    handle.write(piece)
-        os.replace(tmp, path)
+        pieces = [piece for part in parts for piece in _chunks(part)]
+        self.backend.write_bytes(self._key(rel), pieces, durable=False)
         return index
 
     def load_blob(self, rel: str, index: dict[str, list[Any]]) -> dict[str, np.ndarray]:
@@ -154,11 +114,7 @@ class BuildArea:
         (read-only views, no copy), remote ones read in one request."""
         if not index:
             return {}
-        if self.remote:
-            fs, path = self._remote(rel)
-            raw: np.ndarray = np.frombuffer(fs.cat_file(path), dtype=np.uint8)
-        else:
-            raw = np.memmap(self._local(rel), dtype=np.uint8, mode="r")
+        raw = np.frombuffer(self.backend.read_buffer(self._key(rel)), dtype=np.uint8)
         out: dict[str, np.ndarray] = {}
         for key, (offset, dtype, shape) in index.items():
             dt = np.dtype(dtype)
@@ -168,30 +124,18 @@ class BuildArea:
 
     def remove(self, rel: str) -> None:
         """Delete ``.build/<rel>`` (file or folder) if present."""
-        if self.remote:
-            fs, path = self._remote(rel)
-            if fs.exists(path):
-                fs.rm(path, recursive=True)
-            return
-        import shutil
-
-        path = self._local(rel)
-        if path.is_dir():
-            shutil.rmtree(path, ignore_errors=True)
-        elif path.exists():
-            path.unlink()
+        self.backend.delete(self._key(rel))
 
 
 @lru_cache(maxsize=64)
-def _open_array(location: str, name: str) -> Any:
+def _open_array(root: str, name: str) -> Any:
     """One open array per process and name: opening reads its metadata, so do it once."""
     import zarr
 
     from dancedata.store.arrays import for_writing  # every chunk written, zeros included
 
-    return for_writing(
-        zarr.open_array(store=zarr_store(location), path=name, mode="r+", zarr_format=3)
-    )
+    store = _backend_of(root).zarr_store(ZARR_DIR)
+    return for_writing(zarr.open_array(store=store, path=name, mode="r+", zarr_format=3))
 
 
 def _chunks(values: np.ndarray) -> list[bytes | memoryview]:

@@ -19,18 +19,18 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from dancedata.errors import StoreError
-from dancedata.store.fs import is_remote
+from dancedata.store.backend import StoreBackend
 from dancedata.store.layout import STORE_FILE, VERSIONS_DIR, StoreLayout
 
 
 @contextmanager
-def remove_store_if_left_empty(store: str | Path) -> Iterator[None]:
+def remove_store_if_left_empty(store: str | Path | StoreBackend) -> Iterator[None]:
     """Run the block; if it raises and the store did not exist before it, remove the empty
     store the block created (see the module docstring), then re-raise."""
     layout = StoreLayout(store)
     try:
         existed = layout.exists()
-        folder_existed = is_remote(store) or Path(store).exists()
+        folder_existed = layout.backend.exists("")
     except (OSError, StoreError):
         existed = folder_existed = True  # cannot tell: touch nothing
     try:
@@ -38,33 +38,19 @@ def remove_store_if_left_empty(store: str | Path) -> Iterator[None]:
     except BaseException:
         if not existed:
             with contextlib.suppress(OSError, StoreError, ValueError):
-                _remove_empty_store(layout, store, remove_folder=not folder_existed)
+                _remove_empty_store(layout, remove_folder=not folder_existed)
         raise
 
 
-def _remove_empty_store(layout: StoreLayout, store: str | Path, *, remove_folder: bool) -> None:
+def _remove_empty_store(layout: StoreLayout, *, remove_folder: bool) -> None:
     if not layout.exists() or layout.read_pointer().get("latest") is not None:
         return
-    if is_remote(store):
-        fs = layout.fs  # type: ignore[attr-defined]
-        fs.invalidate_cache()
-        if fs.find(layout.key(VERSIONS_DIR)):  # type: ignore[attr-defined]
-            return
-        others = [
-            p for p in fs.ls(layout.base, detail=False)  # type: ignore[attr-defined]
-            if p.rstrip("/").rsplit("/", 1)[-1] not in {STORE_FILE, VERSIONS_DIR}
-        ]
-        if not others:
-            fs.rm(layout.key(STORE_FILE))  # type: ignore[attr-defined]
-        return
-    root = Path(layout.root)
-    versions = root / VERSIONS_DIR
-    if versions.is_dir() and any(versions.iterdir()):
+    backend = layout.backend
+    if backend.list_dir(VERSIONS_DIR):
         return  # a resumable build, or anything else: keep it
-    if any(p.name not in {STORE_FILE, VERSIONS_DIR} for p in root.iterdir()):
+    if any(name not in {STORE_FILE, VERSIONS_DIR} for name in backend.list_dir("")):
         return  # a lock held by another writer, or someone else's file
-    (root / STORE_FILE).unlink()
-    if versions.is_dir():
-        versions.rmdir()
+    backend.delete(STORE_FILE)
+    backend.remove_empty_dir(VERSIONS_DIR)
     if remove_folder:
-        root.rmdir()
+        backend.remove_empty_dir("")

@@ -35,24 +35,19 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import stat
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Hashable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from dancedata.errors import StoreError
+from dancedata.store.backend import TEMP_PREFIX, StoreBackend, json_bytes
+from dancedata.store.backend_open import make_backend
 from dancedata.store.build import BUILD_DIR
-from dancedata.store.checksums import canonical_json, sha256_file
+from dancedata.store.checksums import canonical_json
 from dancedata.store.chunks import ChunkGrid
-from dancedata.store.layout import (
-    MANIFEST_FILE,
-    TEMP_PREFIX,
-    ZARR_DIR,
-    StoreLayout,
-    write_json_atomic,
-)
+from dancedata.store.layout import MANIFEST_FILE, ZARR_DIR, StoreLayout
 
 CHECKSUMS_FILE = "checksums.json"
 ALGORITHM = "sha256"
@@ -60,33 +55,40 @@ RECORD_VERSION = 2
 _NOT_HASHED = frozenset({MANIFEST_FILE, CHECKSUMS_FILE})
 _HASH_THREADS = max(1, min(4, os.cpu_count() or 1))
 
-FileKey = tuple[int, int]  # (st_dev, st_ino): one file on disk, whatever its names
+# A version folder: a local path, a URL, or a backend rooted at it.
+VersionLike = str | Path | StoreBackend
+
+
+def _version(where: VersionLike) -> StoreBackend:
+    return make_backend(where)
+
+
+def sha256_key(backend: StoreBackend, key: str) -> str:
+    """Hex sha256 of one stored file (see :meth:`StoreBackend.sha256`)."""
+    return backend.sha256(key)
 
 
 # -- recording ---------------------------------------------------------------------------------
-def data_files(version_dir: Path) -> list[str]:
+def data_file_sizes(version_dir: VersionLike) -> dict[str, int]:
+    """{relative POSIX path: bytes} of the files a version's checksums cover, sorted."""
+    version = _version(version_dir)
+    found = version.file_sizes("", skip_top=[BUILD_DIR])  # resume state, not data
+    return {
+        rel: size
+        for rel, size in found.items()
+        # an atomic write in flight is never part of a committed version
+        if not rel.rsplit("/", 1)[-1].startswith(TEMP_PREFIX) and rel not in _NOT_HASHED
+    }
+
+
+def data_files(version_dir: VersionLike) -> list[str]:
     """Relative POSIX paths of the files a version's checksums cover, sorted."""
-    found: list[str] = []
-    for dirpath, dirnames, filenames in os.walk(version_dir):
-        rel_dir = Path(dirpath).relative_to(version_dir)
-        if rel_dir == Path("."):
-            dirnames[:] = [d for d in dirnames if d != BUILD_DIR]  # resume state, not data
-        dirnames.sort()
-        for name in filenames:
-            if name.startswith(TEMP_PREFIX):
-                continue  # an atomic write in flight, never part of a committed version
-            rel = (rel_dir / name).as_posix()
-            if rel not in _NOT_HASHED:
-                found.append(rel)
-    return sorted(found)
-
-
-def _file_key(path: Path) -> FileKey | None:
-    try:
-        st = path.stat()
-    except OSError:
-        return None
-    return (st.st_dev, st.st_ino)
+    version = _version(version_dir)
+    return sorted(
+        rel
+        for rel in version.find("", skip_top=[BUILD_DIR])
+        if not rel.rsplit("/", 1)[-1].startswith(TEMP_PREFIX) and rel not in _NOT_HASHED
+    )
 
 
 def _record_digest(record: dict[str, Any]) -> str:
@@ -98,36 +100,36 @@ def _record_digest(record: dict[str, Any]) -> str:
     return hashlib.sha256(canonical_json(body).encode()).hexdigest()
 
 
-def _hash_many(paths: list[Path]) -> list[str]:
-    if len(paths) < 2 or _HASH_THREADS == 1:
-        return [sha256_file(p) for p in paths]
+def _hash_many(backend: StoreBackend, keys: list[str]) -> list[str]:
+    if len(keys) < 2 or _HASH_THREADS == 1:
+        return [sha256_key(backend, k) for k in keys]
     with ThreadPoolExecutor(_HASH_THREADS) as pool:  # hashlib releases the GIL on big blocks
-        return list(pool.map(sha256_file, paths))
+        return list(pool.map(lambda k: sha256_key(backend, k), keys))
 
 
-def array_grids(version_dir: Path) -> dict[str, ChunkGrid]:
+def array_grids(version_dir: VersionLike) -> dict[str, ChunkGrid]:
     """Every regular-grid zarr v3 array of a version's data.zarr, by array path
     (``motion/rotmat``); arrays whose metadata cannot be read are left out (validate reports
     them when it opens them)."""
-    root = version_dir / ZARR_DIR
+    version = _version(version_dir)
     grids: dict[str, ChunkGrid] = {}
-    if not root.is_dir():
+    if not version.is_dir(ZARR_DIR):
         return grids
-    for dirpath, dirnames, filenames in os.walk(root):
-        dirnames[:] = [d for d in dirnames if d != "c"]  # chunk folders hold no metadata
-        if "zarr.json" not in filenames:
-            continue
+    for rel in version.find(ZARR_DIR):
+        parts = rel.split("/")
+        if parts[-1] != "zarr.json" or "c" in parts[:-1]:
+            continue  # chunk folders hold no metadata
         try:
-            meta = json.loads((Path(dirpath) / "zarr.json").read_text(encoding="utf-8"))
+            meta = json.loads(version.read_bytes(f"{ZARR_DIR}/{rel}"))
         except (OSError, ValueError):
             continue
         grid = ChunkGrid.from_metadata(meta)
         if grid is not None:
-            grids[Path(dirpath).relative_to(root).as_posix()] = grid
+            grids["/".join(parts[:-1]) or "."] = grid
     return grids
 
 
-def required_chunk_files(version_dir: Path) -> dict[str, tuple[str, ChunkGrid]]:
+def required_chunk_files(version_dir: VersionLike) -> dict[str, tuple[str, ChunkGrid]]:
     """Version-relative path of every chunk file the arrays' shapes and chunk grids call for,
     mapped to (array path, grid)."""
     required: dict[str, tuple[str, ChunkGrid]] = {}
@@ -138,51 +140,40 @@ def required_chunk_files(version_dir: Path) -> dict[str, tuple[str, ChunkGrid]]:
     return required
 
 
-def symlinks(version_dir: Path) -> list[str]:
+def symlinks(version_dir: VersionLike) -> list[str]:
     """Version-relative paths of symbolic links (files or folders) inside a version: a store
     holds regular files only, and a link could point anywhere."""
-    found = []
-    for dirpath, dirnames, filenames in os.walk(version_dir):
-        rel_dir = Path(dirpath).relative_to(version_dir)
-        for name in [*dirnames, *filenames]:
-            if os.path.islink(os.path.join(dirpath, name)):
-                found.append((rel_dir / name).as_posix())
-    return sorted(found)
+    return _version(version_dir).links("")
 
 
-def _is_regular(path: Path) -> bool:
-    try:
-        return stat.S_ISREG(os.lstat(path).st_mode)
-    except OSError:
-        return False
-
-
-def _parent_entry(parent_dir: Path | None) -> dict[str, Any] | None:
-    if parent_dir is None or not (parent_dir / CHECKSUMS_FILE).is_file():
+def _parent_entry(parent: StoreBackend | None) -> dict[str, Any] | None:
+    if parent is None or not parent.is_file(CHECKSUMS_FILE):
         return None
-    digest = sha256_file(parent_dir / CHECKSUMS_FILE)
-    return {"version": parent_dir.name, "checksums_sha256": digest}
+    digest = sha256_key(parent, CHECKSUMS_FILE)
+    return {"version": parent.name, "checksums_sha256": digest}
 
 
-def commit_problems(version_dir: Path, parent_dir: Path | None) -> list[str]:
+def commit_problems(version_dir: VersionLike, parent_dir: VersionLike | None) -> list[str]:
     """Why a version being committed must not be: a symbolic link anywhere in it, or a chunk
     its arrays call for that is absent (a crc32c array writes every chunk; an older array's
     chunk is required when the parent's record lists it)."""
+    version = _version(version_dir)
+    parent = _version(parent_dir) if parent_dir is not None else None
     problems = [
         f"{rel}: is a symbolic link (a store holds regular files only)"
-        for rel in symlinks(version_dir)
+        for rel in symlinks(version)
     ]
-    if parent_dir is not None:
+    if parent is not None:
         problems += [
-            f"{rel}: is a symbolic link in {parent_dir.name} (a store holds regular files only)"
-            for rel in symlinks(parent_dir)
+            f"{rel}: is a symbolic link in {parent.name} (a store holds regular files only)"
+            for rel in symlinks(parent)
         ]
     parent_files: dict[str, Any] = {}
-    if parent_dir is not None:
-        parent_files = (load_record(parent_dir) or {}).get("files") or {}
-    present = set(data_files(version_dir))
-    origin = f" (carried over from {parent_dir.name})" if parent_dir is not None else ""
-    for rel, (_array, grid) in sorted(required_chunk_files(version_dir).items()):
+    if parent is not None:
+        parent_files = (load_record(parent) or {}).get("files") or {}
+    present = set(data_files(version))
+    origin = f" (carried over from {parent.name})" if parent is not None else ""
+    for rel, (_array, grid) in sorted(required_chunk_files(version).items()):
         if rel in present:
             continue
         if grid.crc32c or rel in parent_files:
@@ -190,19 +181,22 @@ def commit_problems(version_dir: Path, parent_dir: Path | None) -> list[str]:
     return problems
 
 
-def record_checksums(version_dir: str | Path, parent_dir: str | Path | None = None) -> dict:
+def record_checksums(
+    version_dir: VersionLike, parent_dir: VersionLike | None = None
+) -> dict[str, Any]:
     """Hash every data file of the version being committed and write ``checksums.json``.
 
     Refuses (StoreError naming the parent, the array and the chunk) a version with a symbolic
     link or a missing required chunk (:func:`commit_problems`), or carrying over a file that no
-    longer matches the parent's record. A file that is the same inode as the parent's file at
-    the same path (carried over by hard link) takes the parent's recorded hash; every other
-    file is hashed. ``manifest.json``, when already written, is recorded under ``manifest``.
+    longer matches the parent's record. A file that is the same stored file as the parent's
+    file at the same path (carried over by hard link) takes the parent's recorded hash; every
+    other file is hashed. ``manifest.json``, when already written, is recorded under
+    ``manifest``.
     """
-    version_dir = Path(version_dir)
-    parent = Path(parent_dir) if parent_dir is not None else None
-    where = parent if parent is not None else version_dir
-    problems = commit_problems(version_dir, parent)
+    version = _version(version_dir)
+    parent = _version(parent_dir) if parent_dir is not None else None
+    where = parent.where() if parent is not None else version.where()
+    problems = commit_problems(version, parent)
     parent_files: dict[str, Any] = {}
     if parent is not None:
         parent_record = load_record(parent)
@@ -210,15 +204,14 @@ def record_checksums(version_dir: str | Path, parent_dir: str | Path | None = No
             parent_files = parent_record["files"]
     files: dict[str, dict[str, Any]] = {}
     to_hash: list[str] = []
-    for rel in data_files(version_dir):
-        path = version_dir / rel
-        size = path.lstat().st_size
+    for rel, size in data_file_sizes(version).items():
         inherited = parent_files.get(rel)
-        same_file = (
-            parent is not None
-            and _is_regular(parent / rel)
-            and _file_key(path) == _file_key(parent / rel)
-        )
+        same_file = False
+        if parent is not None and inherited is not None:
+            mine = version.identity(rel)
+            same_file = (
+                mine is not None and parent.is_regular(rel) and mine == parent.identity(rel)
+            )
         if same_file and inherited is not None:
             if inherited.get("bytes") != size:
                 problems.append(
@@ -239,7 +232,7 @@ def record_checksums(version_dir: str | Path, parent_dir: str | Path | None = No
             + "; run `dancedata validate --deep` on the store",
             where,
         )
-    for rel, digest in zip(to_hash, _hash_many([version_dir / r for r in to_hash]), strict=True):
+    for rel, digest in zip(to_hash, _hash_many(version, to_hash), strict=True):
         files[rel]["sha256"] = digest
     record: dict[str, Any] = {
         "algorithm": ALGORITHM,
@@ -247,19 +240,21 @@ def record_checksums(version_dir: str | Path, parent_dir: str | Path | None = No
         "files": files,
         "parent": _parent_entry(parent),
     }
-    manifest = version_dir / MANIFEST_FILE
-    if manifest.is_file():
-        record["manifest"] = {"bytes": manifest.stat().st_size, "sha256": sha256_file(manifest)}
+    if version.is_file(MANIFEST_FILE):
+        record["manifest"] = {
+            "bytes": version.size(MANIFEST_FILE),
+            "sha256": sha256_key(version, MANIFEST_FILE),
+        }
     record["digest"] = _record_digest(record)
-    write_json_atomic(version_dir / CHECKSUMS_FILE, record)
+    version.write_bytes(CHECKSUMS_FILE, json_bytes(record))
     return record
 
 
-def load_record(version_dir: Path) -> dict[str, Any] | None:
+def load_record(version_dir: VersionLike) -> dict[str, Any] | None:
     """The parsed ``checksums.json`` of a version, or None when it has none or it is unreadable
     (:func:`check_record` says which)."""
     try:
-        record = json.loads((version_dir / CHECKSUMS_FILE).read_text(encoding="utf-8"))
+        record = json.loads(_version(version_dir).read_bytes(CHECKSUMS_FILE))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return None
     return record if isinstance(record, dict) else None
@@ -291,44 +286,36 @@ def describe_file(rel: str) -> str:
 # -- verifying ---------------------------------------------------------------------------------
 @dataclass
 class HashCache:
-    """sha256 per on-disk file, so a file shared by several versions is read once."""
+    """sha256 per stored file, so a file shared by several versions is read once."""
 
-    by_key: dict[tuple[int, int, int, int], str]
+    by_key: dict[Hashable, str]
 
     @classmethod
     def empty(cls) -> HashCache:
         return cls(by_key={})
 
-    def hashes(self, paths: list[Path]) -> list[str | None]:
-        """sha256 of each path (None for a file that vanished), hashing each inode once."""
-        keys = [_content_key(p) for p in paths]
-        pending: dict[tuple[int, int, int, int], Path] = {}
-        for key, path in zip(keys, paths, strict=True):
-            if key is not None and key not in self.by_key:
-                pending.setdefault(key, path)
-        for key, digest in zip(pending, _hash_many(list(pending.values())), strict=True):
-            self.by_key[key] = digest
-        return [self.by_key.get(k) if k else None for k in keys]
+    def hashes(self, backend: StoreBackend, keys: list[str]) -> list[str | None]:
+        """sha256 of each key (None for a file that vanished), hashing each file once."""
+        contents = [backend.content_key(k) for k in keys]
+        pending: dict[Hashable, str] = {}
+        for content, key in zip(contents, keys, strict=True):
+            if content is not None and content not in self.by_key:
+                pending.setdefault(content, key)
+        digests = _hash_many(backend, list(pending.values()))
+        for content, digest in zip(pending, digests, strict=True):
+            self.by_key[content] = digest
+        return [self.by_key.get(c) if c is not None else None for c in contents]
 
 
-def _content_key(path: Path) -> tuple[int, int, int, int] | None:
-    try:
-        st = path.stat()
-    except OSError:
-        return None
-    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
-
-
-def _manifest_problems(version_dir: Path, record: dict[str, Any]) -> list[str]:
+def _manifest_problems(version: StoreBackend, record: dict[str, Any]) -> list[str]:
     """manifest.json against the ``manifest`` entry of a version-2 record (always re-hashed:
     it is small, and an edited fingerprint or stage list must not pass even a cheap check)."""
     entry = record.get("manifest")
     if not isinstance(entry, dict):
         return []
-    path = version_dir / MANIFEST_FILE
     try:
-        size = path.stat().st_size
-        digest = sha256_file(path)
+        size = version.size(MANIFEST_FILE)
+        digest = sha256_key(version, MANIFEST_FILE)
     except OSError:
         return [f"{MANIFEST_FILE}: missing or unreadable"]
     if size != entry.get("bytes") or digest != entry.get("sha256"):
@@ -339,15 +326,14 @@ def _manifest_problems(version_dir: Path, record: dict[str, Any]) -> list[str]:
     return []
 
 
-def _parent_problems(version_dir: Path, record: dict[str, Any]) -> list[str]:
+def _parent_problems(version: StoreBackend, record: dict[str, Any]) -> list[str]:
     """The parent's checksums.json against the hash this version recorded of it."""
     entry = record.get("parent")
     if not isinstance(entry, dict) or not isinstance(entry.get("version"), str):
         return []
     name = entry["version"]
-    path = version_dir.parent / name / CHECKSUMS_FILE
     try:
-        digest = sha256_file(path)
+        digest = sha256_key(version.sibling(name), CHECKSUMS_FILE)
     except OSError:
         return [f"{CHECKSUMS_FILE}: parent {name}'s record is gone (recorded at commit)"]
     if digest != entry.get("checksums_sha256"):
@@ -358,11 +344,11 @@ def _parent_problems(version_dir: Path, record: dict[str, Any]) -> list[str]:
     return []
 
 
-def _unrecorded_chunks(version_dir: Path, files: dict[str, Any]) -> list[str]:
+def _unrecorded_chunks(version: StoreBackend, files: dict[str, Any]) -> list[str]:
     """Chunks of crc32c arrays (every chunk written) that the record does not list: a record
     built from the files present after a chunk went missing."""
     problems = []
-    for rel, (_array, grid) in sorted(required_chunk_files(version_dir).items()):
+    for rel, (_array, grid) in sorted(required_chunk_files(version).items()):
         if grid.crc32c and rel not in files:
             problems.append(
                 f"{describe_file(rel)} ({rel}): required by the array's shape and chunk grid "
@@ -372,11 +358,11 @@ def _unrecorded_chunks(version_dir: Path, files: dict[str, Any]) -> list[str]:
 
 
 def check_record(
-    version_dir: Path,
+    version_dir: VersionLike,
     *,
     deep: bool,
     cache: HashCache | None = None,
-    sharing: Callable[[Path], str] | None = None,
+    sharing: Callable[[StoreBackend, str], str] | None = None,
 ) -> list[str]:
     """Problems of one committed version against its ``checksums.json``.
 
@@ -385,15 +371,15 @@ def check_record(
     version committed before checksums existed passes the cheap check and fails the deep one
     (there is nothing to verify against).
     """
+    version = _version(version_dir)
     links = [
         f"{describe_file(rel)} ({rel}): is a symbolic link (a store holds regular files only)"
-        for rel in symlinks(version_dir)
+        for rel in symlinks(version)
     ]
-    path = version_dir / CHECKSUMS_FILE
-    if not path.exists():
+    if not version.exists(CHECKSUMS_FILE):
         missing = [f"{CHECKSUMS_FILE}: missing, so the data cannot be verified"] if deep else []
         return links + missing
-    record = load_record(version_dir)
+    record = load_record(version)
     if record is None:
         return [*links, f"{CHECKSUMS_FILE}: unreadable (not JSON)"]
     files = record.get("files")
@@ -408,62 +394,62 @@ def check_record(
             *links,
             f"{CHECKSUMS_FILE}: its own digest does not match (the record is corrupted)",
         ]
-    shared = sharing or (lambda _p: "")
+    shared = sharing or (lambda _v, _rel: "")
     problems: list[str] = [*links]
-    problems += _manifest_problems(version_dir, record)
-    problems += _parent_problems(version_dir, record)
-    problems += _unrecorded_chunks(version_dir, files)
-    present = set(data_files(version_dir))
-    for rel in sorted(present - set(files)):
+    problems += _manifest_problems(version, record)
+    problems += _parent_problems(version, record)
+    problems += _unrecorded_chunks(version, files)
+    present = data_file_sizes(version)
+    for rel in sorted(set(present) - set(files)):
         problems.append(f"{describe_file(rel)} ({rel}): file not recorded at commit")
     checked: list[str] = []
     for rel, entry in sorted(files.items()):
-        target = version_dir / rel
         if rel not in present:
             problems.append(f"{describe_file(rel)} ({rel}): missing")
             continue
-        if not _is_regular(target):
+        if not version.is_regular(rel):
             continue  # a symbolic link: reported above, never followed
-        size = target.stat().st_size
+        size = present[rel]
         if size != entry.get("bytes"):
             problems.append(
                 f"{describe_file(rel)} ({rel}): {size} bytes, {entry.get('bytes')} recorded at "
-                f"commit{shared(target)}"
+                f"commit{shared(version, rel)}"
             )
             continue
         checked.append(rel)
     if deep:
-        digests = (cache or HashCache.empty()).hashes([version_dir / r for r in checked])
+        digests = (cache or HashCache.empty()).hashes(version, checked)
         for rel, digest in zip(checked, digests, strict=True):
             if digest != files[rel].get("sha256"):
                 problems.append(
                     f"{describe_file(rel)} ({rel}): sha256 differs from the one recorded at "
-                    f"commit (corrupted){shared(version_dir / rel)}"
+                    f"commit (corrupted){shared(version, rel)}"
                 )
     return problems
 
 
-def _sharing_index(layout: StoreLayout, versions: Iterable[str]) -> Callable[[Path], str]:
-    """A function telling which other versions hold the same inode as a given file (the index
-    is built on first use: only when there is something to report)."""
-    owners: dict[FileKey, list[str]] = {}
+def _sharing_index(
+    layout: StoreLayout, versions: Iterable[str]
+) -> Callable[[StoreBackend, str], str]:
+    """A function telling which other versions hold the same stored file (hard link) as a
+    given file (the index is built on first use: only when there is something to report)."""
+    owners: dict[Hashable, list[str]] = {}
     names = list(versions)
 
     def build() -> None:
         for name in names:
-            vdir = layout.version_dir(name)
+            vdir = layout.version_backend(name)
             for rel in data_files(vdir):
-                key = _file_key(vdir / rel)
+                key = vdir.identity(rel)
                 if key is not None:
                     owners.setdefault(key, []).append(name)
         names.clear()
 
-    def shared(path: Path) -> str:
+    def shared(version: StoreBackend, rel: str) -> str:
         if names:
             build()
-        key = _file_key(path)
-        version = path.relative_to(layout.versions_dir).parts[0]
-        others = [v for v in owners.get(key, []) if v != version] if key else []
+        key = version.identity(rel)
+        others = [v for v in owners.get(key, []) if v != version.name] if key else []
         if not others:
             return ""
         return f"; the same file (hard link) is in {', '.join(others)}"
@@ -477,6 +463,8 @@ def verify_store(store: str | Path, versions: list[str], *, deep: bool) -> dict[
     cache = HashCache.empty()
     sharing = _sharing_index(layout, layout.committed_versions())
     return {
-        name: check_record(layout.version_dir(name), deep=deep, cache=cache, sharing=sharing)
+        name: check_record(
+            layout.version_backend(name), deep=deep, cache=cache, sharing=sharing
+        )
         for name in versions
     }

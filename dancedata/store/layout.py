@@ -14,17 +14,17 @@ versions are numbered past it so that nothing ever collides with it.
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import json
-import os
 import re
 import sys
 from pathlib import Path
 from typing import Any
 
 from dancedata.errors import StoreError
-from dancedata.store.fs import is_remote, local_path
+from dancedata.store.backend import TEMP_PREFIX, StoreBackend, json_bytes
+from dancedata.store.backend_local import write_file_atomic
+from dancedata.store.backend_open import make_backend
 
 FORMAT_NAME = "dancedata-store"
 FORMAT_VERSION = 1
@@ -32,7 +32,6 @@ STORE_FILE = "store.json"
 VERSIONS_DIR = "versions"
 MANIFEST_FILE = "manifest.json"
 ZARR_DIR = "data.zarr"
-TEMP_PREFIX = ".tmp-"
 _VERSION_RE = re.compile(r"^v(\d+)$")
 
 TABLE_FILES = {
@@ -54,36 +53,9 @@ def version_number(name: str) -> int:
 
 
 def write_json_atomic(path: Path, value: Any) -> None:
-    """Write JSON to ``path`` through a temporary file, fsync and rename, so readers see either
-    the old file or the new one, never a torn one."""
-    tmp = path.with_name(f"{TEMP_PREFIX}{path.name}.{os.getpid()}")
-    try:
-        with open(tmp, "w", encoding="utf-8") as handle:
-            json.dump(value, handle, indent=2, sort_keys=True)
-            handle.write("\n")
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        # a full disk or a kill mid-write: leave no half-written temporary behind
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-    fsync_dir(path.parent)
-
-
-def fsync_dir(path: Path) -> None:
-    """Flush a directory entry (a rename) to disk where the platform allows it."""
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+    """Write JSON to a local ``path`` through a temporary file, fsync and rename, so readers see
+    either the old file or the new one, never a torn one."""
+    write_file_atomic(Path(path), json_bytes(value))
 
 
 def parse_pointer(text: str | bytes, where: str | Path) -> dict[str, Any]:
@@ -186,15 +158,15 @@ def manifest_problem(manifest: Any) -> str | None:
     return None
 
 
-def _empty_or_being_created(root: Path) -> bool:
-    """True when ``root`` holds nothing, or only what another writer creating a store there at
-    this very moment makes before store.json (an empty versions/ folder, store.json's
+def _empty_or_being_created(backend: StoreBackend) -> bool:
+    """True when the store root holds nothing, or only what another writer creating a store
+    there at this very moment makes before store.json (an empty versions/ folder, store.json's
     temporary file): two ingests started together into a new store must not fail with "not a
     dancedata store"."""
-    for entry in root.iterdir():
-        if entry.name == VERSIONS_DIR and entry.is_dir() and not any(entry.iterdir()):
+    for name in backend.list_dir(""):
+        if name == VERSIONS_DIR and backend.is_dir(name) and not backend.list_dir(name):
             continue
-        if entry.name.startswith(f"{TEMP_PREFIX}{STORE_FILE}."):
+        if name.startswith(f"{TEMP_PREFIX}{STORE_FILE}."):
             continue
         return False
     return True
@@ -224,58 +196,65 @@ def warn_once(message: str) -> None:
 
 
 class StoreLayout:
-    """Paths and pointer of one local store directory. Knows nothing about arrays or tables."""
+    """Paths and pointer of one store, on any backend (see :mod:`dancedata.store.backend`).
+    Knows nothing about arrays or tables. ``root``, ``store_file``, ``versions_dir`` and
+    ``version_dir()`` are what messages show: Paths for a local store, URLs otherwise."""
 
-    def __new__(cls, root: str | Path) -> StoreLayout:
-        # A URL (s3://...) gets the remote layout, whatever the call site (see store.remote).
-        if cls is StoreLayout and is_remote(root):
-            from dancedata.store.remote import RemoteLayout
-
-            return super().__new__(RemoteLayout)
-        return super().__new__(cls)
-
-    def __init__(self, root: str | Path) -> None:
-        self.root = local_path(root)
+    def __init__(self, root: str | Path | StoreBackend) -> None:
+        self.backend = make_backend(root)
+        self.root: Any = self.backend.where()
 
     @property
-    def store_file(self) -> Path:
-        return self.root / STORE_FILE
+    def store_file(self) -> Any:
+        return self.backend.where(STORE_FILE)
 
     @property
-    def versions_dir(self) -> Path:
-        return self.root / VERSIONS_DIR
+    def versions_dir(self) -> Any:
+        return self.backend.where(VERSIONS_DIR)
 
-    def version_dir(self, name: str) -> Path:
+    def version_key(self, name: str) -> str:
+        """The backend key of ``versions/<name>`` (checked to be a version name)."""
         version_number(name)
-        return self.versions_dir / name
+        return f"{VERSIONS_DIR}/{name}"
+
+    def version_dir(self, name: str) -> Any:
+        return self.backend.where(self.version_key(name))
+
+    def version_backend(self, name: str) -> StoreBackend:
+        """The backend rooted at ``versions/<name>``."""
+        return self.backend.at(self.version_key(name))
 
     def exists(self) -> bool:
-        return self.store_file.is_file()
+        self.backend.invalidate()
+        return self.backend.is_file(STORE_FILE)
 
     def check_not_a_file(self) -> None:
         """StoreError when the store path is an existing file rather than a directory."""
-        if self.root.exists() and not self.root.is_dir():
+        if self.backend.is_file(""):
             raise StoreError("is a file, not a store directory", self.root)
 
     def read_pointer(self) -> dict[str, Any]:
         """Contents of store.json; a clear error when it is missing or not ours."""
         self.check_not_a_file()
-        if not self.store_file.is_file():
+        if not self.exists():
             raise StoreError("not a dancedata store (no store.json)", self.root)
         try:
-            text = self.store_file.read_text(encoding="utf-8")
+            text = self.backend.read_bytes(STORE_FILE)
+        except FileNotFoundError:
+            raise StoreError("not a dancedata store (no store.json)", self.root) from None
         except OSError as exc:
             raise StoreError(f"unreadable store.json: {exc}", self.store_file) from None
         return parse_pointer(text, self.store_file)
 
     def write_pointer(self, latest: str | None) -> None:
-        """Point store.json at ``latest``, keeping its other fields (the checkout log)."""
-        self.root.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(self.store_file, pointer_with_latest(self._pointer_or_none(), latest))
+        """Point store.json at ``latest``, keeping its other fields (the checkout log). One
+        atomic write (a rename locally, one PUT on object stores, where it is the commit
+        point of a version)."""
+        self.write_pointer_record(pointer_with_latest(self._pointer_or_none(), latest))
 
     def write_pointer_record(self, pointer: dict[str, Any]) -> None:
         """Replace store.json with ``pointer`` (already checked), atomically."""
-        write_json_atomic(self.store_file, pointer)
+        self.backend.write_bytes(STORE_FILE, json_bytes(pointer))
 
     def _pointer_or_none(self) -> dict[str, Any] | None:
         try:
@@ -287,30 +266,48 @@ class StoreLayout:
         """Create an empty store (store.json with no latest version) if there is none."""
         self.check_not_a_file()
         if not self.exists():
-            if self.root.exists() and not _empty_or_being_created(self.root):
+            if self.backend.exists("") and not _empty_or_being_created(self.backend):
                 raise StoreError(
-                    "directory exists, is not empty and is not a dancedata store", self.root
+                    f"{self.backend.root_noun} exists, is not empty and is not a dancedata store",
+                    self.root,
                 )
-            self.versions_dir.mkdir(parents=True, exist_ok=True)
+            self.backend.make_dir(VERSIONS_DIR)
             if not self.exists():  # (another writer creating it may have finished meanwhile)
                 self.write_pointer(None)
         else:
             self.read_pointer()
-            self.versions_dir.mkdir(parents=True, exist_ok=True)
+            self.backend.make_dir(VERSIONS_DIR)
 
     def version_dirs(self) -> list[str]:
-        """Every ``vN`` entry of versions/, committed or damaged, oldest first."""
-        if not self.versions_dir.is_dir():
-            return []
-        names = [e.name for e in self.versions_dir.iterdir() if _VERSION_RE.match(e.name)]
+        """Every ``vN`` entry of versions/ that counts, committed or damaged, oldest first.
+
+        Where the pointer is the commit point (object stores), folders numbered past the
+        newest version store.json names or has named (its checkout log) do not count: they are
+        copies whose writer died before the commit, and the next writer replaces them."""
+        names = [n for n in self.backend.list_dir(VERSIONS_DIR) if _VERSION_RE.match(n)]
+        if not self.backend.renames_atomically:
+            limit = self._pointer_limit()
+            names = [n for n in names if version_number(n) <= limit]
         return sorted(names, key=version_number)
+
+    def _pointer_limit(self) -> int:
+        """The newest version number store.json commits (0 when none)."""
+        if not self.exists():
+            return 0
+        pointer = self.read_pointer()
+        latest = pointer.get("latest")
+        if not isinstance(latest, str) or not _VERSION_RE.match(latest):
+            return 0
+        # after `dancedata checkout` latest may be older than versions committed before it:
+        # the checkout log records the newest one it saw, which stays committed
+        return max(version_number(latest), checkout_newest(pointer))
 
     def version_problem(self, name: str) -> str | None:
         """Why ``versions/<name>`` is not a usable committed version, or None when it is."""
-        folder = self.versions_dir / name
-        if not folder.is_dir():
+        key = self.version_key(name)
+        if not self.backend.is_dir(key):
             return "not a directory"
-        if not (folder / MANIFEST_FILE).is_file():
+        if not self.backend.is_file(f"{key}/{MANIFEST_FILE}"):
             return "version folder has no manifest.json (a damaged or half-restored version)"
         try:
             self.read_manifest(name)
@@ -329,20 +326,21 @@ class StoreLayout:
 
     def committed_versions(self) -> list[str]:
         """Committed version names, oldest first. A version is committed once its directory has
-        its final name and holds a valid manifest.json (written last, before the rename).
-        Damaged ``vN`` folders are left out, each with a one-line warning on stderr."""
+        its final name and holds a valid manifest.json (written last, before the rename; on
+        object stores, once store.json names it too). Damaged ``vN`` folders are left out,
+        each with a one-line warning on stderr."""
         names = []
         for name in self.version_dirs():
             problem = self.version_problem(name)
             if problem is None:
                 names.append(name)
             else:
-                warn_once(f"{self.versions_dir / name}: ignored, {problem}")
+                warn_once(f"{self.version_dir(name)}: ignored, {problem}")
         return names
 
     def next_version_name(self) -> str:
-        """The name of the next version: one past every ``vN`` entry, damaged ones included,
-        so a commit never collides with a folder that is already there."""
+        """The name of the next version: one past every ``vN`` entry that counts, damaged
+        ones included, so a commit never collides with a folder that is already there."""
         taken = self.version_dirs()
         return f"v{version_number(taken[-1]) + 1 if taken else 1}"
 
@@ -366,8 +364,7 @@ class StoreLayout:
         the latest; clear errors."""
         if version is not None and version.strip().isdigit():
             version = f"v{int(version)}"
-        local = isinstance(self.versions_dir, Path)  # (remote layouts list differently)
-        if local and version is not None and version in self.version_dirs():
+        if version is not None and version in self.version_dirs():
             problem = self.version_problem(version)
             if problem is not None:
                 raise StoreError(f"version {version} is damaged: {problem}", self.root)
@@ -382,36 +379,43 @@ class StoreLayout:
             raise StoreError(f"no committed version {version!r} (committed: {listed})", self.root)
         return version
 
-    def temp_dirs(self) -> list[Path]:
-        if not self.versions_dir.is_dir():
-            return []
-        return sorted(p for p in self.versions_dir.iterdir() if p.name.startswith(TEMP_PREFIX))
+    def temp_names(self) -> list[str]:
+        """Names of the temporary version folders under versions/ (builds in progress or
+        abandoned), sorted."""
+        return [n for n in self.backend.list_dir(VERSIONS_DIR) if n.startswith(TEMP_PREFIX)]
 
-    # -- reading files of a version (the remote layout overrides these) ------------------------
+    def temp_dirs(self) -> list[Any]:
+        return [self.backend.where(f"{VERSIONS_DIR}/{n}") for n in self.temp_names()]
+
+    # -- reading files of a version ------------------------------------------------------------
     def has_file(self, version: str, rel: str) -> bool:
-        return (self.version_dir(version) / rel).is_file()
+        return self.backend.is_file(f"{self.version_key(version)}/{rel}")
 
     def read_bytes(self, version: str, rel: str) -> bytes:
-        return (self.version_dir(version) / rel).read_bytes()
+        return self.backend.read_bytes(f"{self.version_key(version)}/{rel}")
 
     def zarr_location(self, version: str) -> str:
-        return str(self.version_dir(version) / ZARR_DIR)
+        return str(self.backend.where(f"{self.version_key(version)}/{ZARR_DIR}"))
 
     def read_manifest(self, version: str) -> dict[str, Any]:
         """The version's manifest.json, checked (:func:`parse_manifest`); StoreError naming the
         file when it is missing, unreadable or not a usable manifest."""
-        path = self.version_dir(version) / MANIFEST_FILE
+        key = f"{self.version_key(version)}/{MANIFEST_FILE}"
+        where = self.backend.where(key)
         try:
-            stat = path.stat()
-            key = (str(path), stat.st_ino, stat.st_size, stat.st_mtime_ns)
-            if key not in _MANIFEST_CACHE:
+            content = self.backend.content_key(key)
+            if content is None:
+                return parse_manifest(self.backend.read_bytes(key), where)
+            cache_key = (str(where), content)
+            if cache_key not in _MANIFEST_CACHE:
                 if len(_MANIFEST_CACHE) > 256:
                     _MANIFEST_CACHE.clear()
-                _MANIFEST_CACHE[key] = parse_manifest(path.read_bytes(), path)
+                _MANIFEST_CACHE[cache_key] = parse_manifest(self.backend.read_bytes(key), where)
         except OSError as exc:
-            raise StoreError(f"unreadable manifest: {exc.strerror or exc}", path) from None
-        return copy.deepcopy(_MANIFEST_CACHE[key])  # callers may change their copy
+            raise StoreError(f"unreadable manifest: {exc.strerror or exc}", where) from None
+        return copy.deepcopy(_MANIFEST_CACHE[cache_key])  # callers may change their copy
 
 
-# Parsed manifests by (path, inode, size, mtime): listing versions reads each manifest once.
-_MANIFEST_CACHE: dict[tuple[str, int, int, int], dict[str, Any]] = {}
+# Parsed manifests by (where, content key: inode, size and mtime locally, the ETag on object
+# stores): listing versions reads each manifest once.
+_MANIFEST_CACHE: dict[tuple[str, Any], dict[str, Any]] = {}

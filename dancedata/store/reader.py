@@ -9,12 +9,14 @@ sha256 recorded in checksums.json for arrays written before).
 from __future__ import annotations
 
 import functools
+import io
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dancedata.errors import StoreError
-from dancedata.store.fs import is_remote, zarr_store
+from dancedata.store.backend import StoreBackend
+from dancedata.store.backend_open import make_backend
 from dancedata.store.layout import TABLE_FILES, ZARR_DIR, StoreLayout
 
 if TYPE_CHECKING:
@@ -23,12 +25,14 @@ if TYPE_CHECKING:
 
 
 class VersionReader:
-    """Read-only access to ``STORE/versions/<version>`` (latest when ``version`` is None)."""
+    """Read-only access to ``STORE/versions/<version>`` (latest when ``version`` is None), on
+    any backend."""
 
-    def __init__(self, store: str | Path, version: str | None = None) -> None:
+    def __init__(self, store: str | Path | StoreBackend, version: str | None = None) -> None:
         self.layout = StoreLayout(store)
         self.version = self.layout.resolve(version)
-        self.path = self.layout.version_dir(self.version)
+        self.path = self.layout.version_dir(self.version)  # a Path locally, else a URL
+        self.files = self.layout.version_backend(self.version)
         self._tables: dict[str, pa.Table] = {}
 
     @cached_property
@@ -37,41 +41,25 @@ class VersionReader:
 
     @property
     def remote(self) -> bool:
-        return is_remote(str(self.layout.root))
+        """Whether the store is on object storage rather than a local directory (for code
+        that still walks local folders itself; the reader does not need it)."""
+        return not self.layout.backend.renames_atomically
 
     @cached_property
     def root(self) -> zarr.Group | None:
+        import warnings
+
         import zarr
 
-        if self.remote:
-            return self._remote_root()
-        path = self.path / ZARR_DIR
-        if not path.exists():
+        from dancedata.store.checked_store import CheckedStore
+
+        if not self.files.is_dir(ZARR_DIR):
             return None
-        import warnings
-
-        from zarr.storage import LocalStore
-
-        from dancedata.store.checked_store import CheckedStore
-
-        recorded = functools.partial(recorded_chunks, self.path)  # picklable, read on demand
-        store = CheckedStore(LocalStore(str(path), read_only=True), str(path), recorded)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", category=UserWarning)
-            try:
-                return zarr.open_group(store=store, mode="r", use_consolidated=True)
-            except (ValueError, KeyError, FileNotFoundError):
-                return zarr.open_group(store=store, mode="r")
-
-    def _remote_root(self) -> zarr.Group | None:
-        import warnings
-
-        import zarr
-
-        from dancedata.store.checked_store import CheckedStore
-
-        location = self.layout.zarr_location(self.version)
-        store = CheckedStore(zarr_store(location, read_only=True), str(location))
+        recorded = functools.partial(recorded_chunks, self.files)  # picklable, read on demand
+        store = CheckedStore(
+            self.files.zarr_store(ZARR_DIR, read_only=True), str(self.files.where(ZARR_DIR)),
+            recorded,
+        )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=UserWarning)
             try:
@@ -83,9 +71,7 @@ class VersionReader:
                     return None
 
     def has_table(self, name: str) -> bool:
-        if self.remote:
-            return self.layout.has_file(self.version, TABLE_FILES[name])
-        return (self.path / TABLE_FILES[name]).is_file()
+        return self.files.is_file(TABLE_FILES[name])
 
     def table(self, name: str) -> pa.Table:
         if name not in TABLE_FILES:
@@ -93,32 +79,18 @@ class VersionReader:
         if name not in self._tables:
             import pyarrow.parquet as pq
 
-            if self.remote:
-                self._tables[name] = self._remote_table(name)
-                return self._tables[name]
-            path = self.path / TABLE_FILES[name]
-            if not path.is_file():
-                raise StoreError(f"version {self.version} has no {name} table", self.path)
+            where = self.files.where(TABLE_FILES[name])
             try:
-                self._tables[name] = pq.read_table(path)
+                data = self.files.read_bytes(TABLE_FILES[name])
+            except (FileNotFoundError, IsADirectoryError):
+                raise StoreError(f"version {self.version} has no {name} table", where) from None
+            except OSError as exc:
+                raise StoreError(f"unreadable table: {exc}", where) from None
+            try:
+                self._tables[name] = pq.read_table(io.BytesIO(data))
             except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
-                raise StoreError(f"unreadable table: {exc}", path) from None
+                raise StoreError(f"unreadable table: {exc}", where) from None
         return self._tables[name]
-
-    def _remote_table(self, name: str) -> pa.Table:
-        import io
-
-        import pyarrow.parquet as pq
-
-        where = f"{self.path}/{TABLE_FILES[name]}"
-        try:
-            data = self.layout.read_bytes(self.version, TABLE_FILES[name])
-        except FileNotFoundError:
-            raise StoreError(f"version {self.version} has no {name} table", where) from None
-        try:
-            return pq.read_table(io.BytesIO(data))
-        except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
-            raise StoreError(f"unreadable table: {exc}", where) from None
 
     def has_array(self, name: str) -> bool:
         root = self.root
@@ -169,13 +141,13 @@ class VersionReader:
             return {}
 
 
-def recorded_chunks(version_dir: Path) -> dict[str, Any]:
-    """checksums.json entries of a local version's data.zarr files, keyed by their path inside
+def recorded_chunks(version_dir: str | Path | StoreBackend) -> dict[str, Any]:
+    """checksums.json entries of a version's data.zarr files, keyed by their path inside
     data.zarr (what the checking store needs for arrays written without crc32c); {} when the
     version has no readable record."""
     from dancedata.store.integrity import load_record
 
-    record = load_record(Path(version_dir)) or {}
+    record = load_record(make_backend(version_dir)) or {}
     files = record.get("files")
     if not isinstance(files, dict):
         return {}

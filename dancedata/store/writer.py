@@ -1,13 +1,17 @@
-"""Build a new store version under a temporary name, then commit it with one rename.
+"""Build a new store version under a temporary name, then commit it in one atomic step.
 
 Nothing a writer does is visible until :meth:`VersionWriter.commit`: the version is assembled in
-``versions/.tmp-<pid>-<token>``, manifest.json is written last, the directory is renamed to
-``vN`` (atomic on a local filesystem) and store.json is pointed at it. A crash at any point
-leaves the previous versions untouched; the temporary directory is removed by the next writer.
+``versions/.tmp-<pid>-<token>``, manifest.json and checksums.json are written, the folder is
+published as ``vN`` and store.json is pointed at it. On a local filesystem the publish is one
+rename (the commit point); on object stores it is a copy and the store.json PUT is the commit
+point (see :mod:`dancedata.store.backend` and :mod:`dancedata.store.backend_fsspec`). A crash at
+any point leaves the previous versions untouched; the temporary folder is removed by the next
+writer. One class does both: the differences live in the backend.
 
-A new version starts as a copy of its parent. Data files (zarr chunks, parquet) are hard-linked,
-since committed versions are immutable and zarr replaces files by rename rather than rewriting
-them; metadata files are copied so that updating them never touches the parent.
+A new version starts as a copy of its parent (:meth:`StoreBackend.carry_over`). Locally, data
+files (zarr chunks, parquet) are hard-linked, since committed versions are immutable and zarr
+replaces files by rename rather than rewriting them; metadata files are copied so that updating
+them never touches the parent.
 
 No lost update: a command that derives a version from another (featurize, segment) must choose
 its parent, compute its fingerprint and check whether its result already exists *while holding
@@ -26,9 +30,9 @@ after the temporary version is removed and the lock released.
 from __future__ import annotations
 
 import datetime as _dt
+import io
 import os
 import secrets
-import shutil
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -36,25 +40,22 @@ from typing import TYPE_CHECKING, Any
 
 from dancedata._version import __version__
 from dancedata.errors import DancedataError, StoreError
+from dancedata.store.backend import StoreBackend, json_bytes
 from dancedata.store.build import BUILD_DIR, PREPARED_FILE, BuildArea
-from dancedata.store.fs import is_remote, storage_error
+from dancedata.store.fs import storage_error
 from dancedata.store.integrity import record_checksums
 from dancedata.store.layout import (
     MANIFEST_FILE,
     TABLE_FILES,
     TEMP_PREFIX,
+    VERSIONS_DIR,
     ZARR_DIR,
     StoreLayout,
-    fsync_dir,
-    write_json_atomic,
 )
-from dancedata.store.lock import StoreLock
 
 if TYPE_CHECKING:
     import pyarrow as pa
     import zarr
-
-_COPIED_NAMES = {"zarr.json", ".zattrs", ".zgroup", ".zarray", MANIFEST_FILE}
 
 
 def library_versions() -> dict[str, str]:
@@ -70,42 +71,22 @@ def library_versions() -> dict[str, str]:
     return found
 
 
-def _link_or_copy_tree(src: Path, dst: Path, skip: set[str]) -> None:
-    """Recreate ``src`` at ``dst``: metadata copied, data files hard-linked (copied when the
-    filesystem refuses links). Top-level entries named in ``skip`` are left out."""
-    for dirpath, dirnames, filenames in os.walk(src):
-        rel = Path(dirpath).relative_to(src)
-        if rel == Path("."):
-            dirnames[:] = [d for d in dirnames if d not in skip]
-            filenames = [f for f in filenames if f not in skip]
-        (dst / rel).mkdir(parents=True, exist_ok=True)
-        for name in filenames:
-            source, target = Path(dirpath) / name, dst / rel / name
-            if name in _COPIED_NAMES:
-                shutil.copy2(source, target)
-                continue
-            try:
-                os.link(source, target)
-            except OSError:
-                shutil.copy2(source, target)
-
-
 def clean_abandoned_temps(layout: StoreLayout, keep: str | None = None) -> list[str]:
-    """Remove temporary version directories left by writers that died, except ``keep`` (the
-    one a resumable writer is about to reuse). Call under the lock: then no live writer of this
-    store owns any of them."""
+    """Remove temporary version folders left by writers that died, except ``keep`` (the one a
+    resumable writer is about to reuse). Call under the lock: then no live writer of this store
+    owns any of them."""
     removed = []
-    for path in layout.temp_dirs():
-        if path.name == keep:
+    for name in layout.temp_names():
+        if name == keep:
             continue
-        shutil.rmtree(path, ignore_errors=True)
-        removed.append(path.name)
+        layout.backend.delete(f"{VERSIONS_DIR}/{name}")
+        removed.append(name)
     return removed
 
 
 @contextmanager
 def hold_store_lock(
-    store: str | Path, *, wait: bool = False, create: bool = False
+    store: str | Path | StoreBackend, *, wait: bool = False, create: bool = False
 ) -> Iterator[Any]:
     """Hold the writer lock of an existing store for the block (local or remote); plan the new
     version inside the block and pass the lock to :class:`VersionWriter` (``lock=``), which
@@ -116,28 +97,23 @@ def hold_store_lock(
         try:
             layout.ensure()  # as VersionWriter does before it locks
         except OSError as exc:
-            error = storage_error(exc, store, "opening the store for writing")
+            error = storage_error(exc, layout.root, "opening the store for writing")
             if error is None:
                 raise
             raise error from None
     layout.read_pointer()  # a clear error for a missing store or a file, before any lock file
-    if is_remote(store):
-        from dancedata.store.remote import RemoteLock
-
-        lock: Any = RemoteLock(layout, wait=wait)  # type: ignore[arg-type]
-    else:
-        lock = StoreLock(layout.root, wait=wait)
+    lock = layout.backend.writer_lock(wait=wait)
     try:
         try:
             lock.acquire()
         except OSError as exc:
-            error = storage_error(exc, store, "taking the store lock")
+            error = storage_error(exc, layout.root, "taking the store lock")
             if error is None:
                 raise
             raise error from None
         yield lock
     except OSError as exc:
-        error = storage_error(exc, store, "preparing a new version")
+        error = storage_error(exc, layout.root, "preparing a new version")
         if error is None:
             raise
         raise error from None
@@ -158,7 +134,7 @@ class VersionWriter:
 
     def __init__(
         self,
-        store: str | Path,
+        store: str | Path | StoreBackend,
         *,
         command: str,
         config: dict[str, Any],
@@ -190,8 +166,11 @@ class VersionWriter:
         self.skipped: list[dict[str, str]] = []
         self.cleaned_temps: list[str] = []
         # ``lock``: one the caller already holds (see hold_store_lock); released at commit.
-        self._lock = lock if lock is not None else StoreLock(self.layout.root, wait=wait_for_lock)
-        self.tmp: Path | None = None
+        self.backend = self.layout.backend
+        self._lock = lock if lock is not None else self.backend.writer_lock(wait=wait_for_lock)
+        # the temporary version: its backend key, and what messages show (a Path or a URL)
+        self.tmp_key: str | None = None
+        self.tmp: Any = None
         # ``based_on``: the latest version the caller read its data from before taking the lock
         # (ingest bvh --append); if another writer committed meanwhile, refuse rather than
         # silently drop that writer's version (a lost update).
@@ -205,13 +184,6 @@ class VersionWriter:
         # finds it prepared (see dancedata.store.build) reuses it and the units it finished.
         self.resumable = resumable
         self.resumed = False
-
-    def __new__(cls, store: str | Path, **kwargs: Any) -> VersionWriter:
-        if cls is VersionWriter and is_remote(store):
-            from dancedata.store.remote import RemoteVersionWriter
-
-            return super().__new__(RemoteVersionWriter)
-        return super().__new__(cls)
 
     def temp_name(self) -> str:
         """``.tmp-<fingerprint[:16]>`` when resumable, else unique to this process."""
@@ -230,20 +202,23 @@ class VersionWriter:
                 raise
             raise error from None
         try:
-            self.existing = find_version_with_fingerprint(self.layout.root, self.fingerprint)
+            self.existing = find_version_with_fingerprint(self.backend, self.fingerprint)
             self._check_based_on()
             name = self.temp_name()
             self.cleaned_temps = clean_abandoned_temps(self.layout, keep=name)
-            self.tmp = self.layout.versions_dir / name
-            if self.resumable and (self.tmp / BUILD_DIR / PREPARED_FILE).is_file():
+            self.tmp_key = f"{VERSIONS_DIR}/{name}"
+            self.tmp = self.backend.where(self.tmp_key)
+            prepared = f"{self.tmp_key}/{BUILD_DIR}/{PREPARED_FILE}"
+            if self.resumable and self.backend.is_file(prepared):
                 self.resumed = True
                 return self
-            if self.tmp.exists():
-                shutil.rmtree(self.tmp)
-            self.tmp.mkdir(parents=True)
+            self.backend.delete(self.tmp_key)
+            self.backend.make_dir(self.tmp_key)
             if self.parent is not None and self.carry_over:
-                _link_or_copy_tree(
-                    self.layout.version_dir(self.parent), self.tmp, {MANIFEST_FILE, *self.drop}
+                self.backend.carry_over(
+                    self.layout.version_key(self.parent),
+                    self.tmp_key,
+                    skip_top={MANIFEST_FILE, *self.drop},
                 )
         except BaseException as exc:
             error = storage_error(exc, self.layout.root, "preparing a new version")
@@ -288,26 +263,32 @@ class VersionWriter:
 
     def _discard(self, exc: object = None) -> None:
         try:
-            if self.tmp is not None and self.tmp.exists() and not self._keep_for_resume(exc):
-                shutil.rmtree(self.tmp, ignore_errors=True)
+            if self.tmp_key is not None and not self._keep_for_resume(exc):
+                try:
+                    self.backend.delete(self.tmp_key)
+                except Exception:  # best effort: the next writer removes leftovers
+                    if self.backend.renames_atomically:
+                        raise
         finally:
             self._lock.release()
 
     # -- resumable builds ----------------------------------------------------------------------
+    def _key(self, *parts: str) -> str:
+        if self.tmp_key is None:
+            raise StoreError("VersionWriter used outside its with-block")
+        return "/".join((self.tmp_key, *parts))
+
     def build_area(self) -> BuildArea:
-        """The temporary version as plain data, for workers to write into."""
-        return BuildArea(str(Path(self.path).resolve()))  # absolute: workers may run elsewhere
+        """The temporary version as plain data, for workers to write into (absolute: workers
+        may run elsewhere)."""
+        return BuildArea(self.backend.locator(self._key()))
 
     def reset_outputs(self) -> None:
         """Delete everything built so far except the build state (``.build``): for commands
         that rewrite all their outputs from finished units on every run (ingest)."""
-        for entry in self.path.iterdir():
-            if entry.name == BUILD_DIR:
-                continue
-            if entry.is_dir():
-                shutil.rmtree(entry)
-            else:
-                entry.unlink()
+        for name in self.backend.list_dir(self._key()):
+            if name != BUILD_DIR:
+                self.backend.delete(self._key(name))
         self._zarr_group = None
 
     def mark_prepared(self, info: dict[str, Any] | None = None) -> None:
@@ -316,7 +297,8 @@ class VersionWriter:
 
     # -- content -------------------------------------------------------------------------------
     @property
-    def path(self) -> Path:
+    def path(self) -> Any:
+        """The temporary version (a Path locally, a URL on object stores)."""
         if self.tmp is None:
             raise StoreError("VersionWriter used outside its with-block")
         return self.tmp
@@ -326,27 +308,29 @@ class VersionWriter:
         if self._zarr_group is None:
             import zarr
 
-            self._zarr_group = zarr.open_group(self.path / ZARR_DIR, mode="a", zarr_format=3)
+            store = self.backend.zarr_store(self._key(ZARR_DIR))
+            self._zarr_group = zarr.open_group(store=store, mode="a", zarr_format=3)
         return self._zarr_group
 
     def remove_array(self, name: str) -> None:
         """Delete an array (or group) carried over from the parent before replacing it."""
-        target = self.path / ZARR_DIR / name
-        if target.exists():
-            shutil.rmtree(target)
+        target = self._key(ZARR_DIR, name)
+        if self.backend.exists(target):
+            self.backend.delete(target)
             self._zarr_group = None  # reopen: cached metadata may name the removed node
 
-    def write_table(self, name: str, table: pa.Table) -> Path:
-        """Write one of the contract's parquet tables, replacing a carried-over one."""
+    def write_table(self, name: str, table: pa.Table) -> Any:
+        """Write one of the contract's parquet tables, replacing a carried-over one (by an
+        atomic replace, never writing through a hard link into the parent)."""
         import pyarrow.parquet as pq
 
         if name not in TABLE_FILES:
             raise StoreError(f"unknown table {name!r}; known: {sorted(TABLE_FILES)}")
-        target = self.path / TABLE_FILES[name]
-        if target.exists():
-            target.unlink()  # may be a hard link into the parent: unlink, never overwrite
-        pq.write_table(table, target, compression="zstd")
-        return target
+        buffer = io.BytesIO()
+        pq.write_table(table, buffer, compression="zstd")
+        key = self._key(TABLE_FILES[name])
+        self.backend.write_bytes(key, buffer.getbuffer(), durable=False)
+        return self.backend.where(key)
 
     def skip(self, path: str | Path, error: str) -> None:
         """Record an input skipped under ``--on-error skip``."""
@@ -372,7 +356,8 @@ class VersionWriter:
         }
 
     def commit(self, counts: dict[str, Any] | None = None) -> str:
-        """Consolidate metadata, write manifest.json, rename into place, move store.json."""
+        """Consolidate metadata, write manifest.json and checksums.json, publish the folder as
+        ``vN``, point store.json at it."""
         if self.committed_as is not None:
             return self.committed_as
         if self.existing is not None:
@@ -380,8 +365,8 @@ class VersionWriter:
             self._discard()
             self.committed_as = self.existing
             return self.existing
-        zarr_path = self.path / ZARR_DIR
-        if zarr_path.exists():
+        zarr_key = self._key(ZARR_DIR)
+        if self.backend.is_dir(zarr_key):
             import warnings
 
             import zarr
@@ -390,28 +375,23 @@ class VersionWriter:
                 # Consolidated metadata is a zarr-python extension to v3; we write it for fast
                 # opens and readers that ignore it still work.
                 warnings.simplefilter("ignore", category=UserWarning)
-                zarr.consolidate_metadata(str(zarr_path))
+                zarr.consolidate_metadata(self.backend.zarr_store(zarr_key))
         name = self.layout.next_version_name()  # past damaged folders too: never collides
         manifest = self.manifest(name, counts)
         # integrity (issue 8, 11.5): checksums.json of every data file and of the manifest, so
-        # the manifest goes first (the directory is invisible until the rename either way)
-        write_json_atomic(self.path / MANIFEST_FILE, manifest)
-        record_checksums(self.path, self.layout.version_dir(self.parent) if self.parent else None)
+        # the manifest goes first (the folder is invisible until it is published either way)
+        self.backend.write_bytes(self._key(MANIFEST_FILE), json_bytes(manifest))
+        parent = self.layout.version_backend(self.parent) if self.parent else None
+        record_checksums(self.backend.at(self._key()), parent)
         # The finished units' build state stays until the last moment, so a kill anywhere
-        # before the commit rename still resumes them; it leaves by one rename of its own.
-        spent = None
-        if (self.path / BUILD_DIR).exists():
-            spent = self.layout.versions_dir / f"{TEMP_PREFIX}spent-{secrets.token_hex(6)}"
-            os.rename(self.path / BUILD_DIR, spent)
-        final = self.layout.version_dir(name)
-        os.rename(self.path, final)
-        fsync_dir(self.layout.versions_dir)
-        if spent is not None:
-            shutil.rmtree(spent, ignore_errors=True)
+        # before the commit still resumes them (see StoreBackend.publish).
+        final = self.layout.version_key(name)
+        self.backend.publish(self._key(), final, leave_out=BUILD_DIR, last=MANIFEST_FILE)
         self.committed_as = name
-        self.tmp = final
+        spent, self.tmp_key, self.tmp = self.tmp_key, final, self.backend.where(final)
         try:
-            self.layout.write_pointer(name)  # (a reader finds vN even if this fails)
+            self.layout.write_pointer(name)  # (locally a reader finds vN even if this fails)
+            self.backend.delete(spent)  # what a copy left behind (object stores)
         finally:
             self._lock.release()
         return name
@@ -428,7 +408,7 @@ def base_fingerprint(manifest: dict[str, Any]) -> str:
 
 
 def already_done(
-    store: str | Path,
+    store: str | Path | StoreBackend,
     fingerprint: str,
     parent_manifest: dict[str, Any] | None = None,
     stage: str | None = None,
@@ -445,7 +425,9 @@ def already_done(
     return find_version_with_fingerprint(store, fingerprint)
 
 
-def find_version_with_fingerprint(store: str | Path, fingerprint: str) -> str | None:
+def find_version_with_fingerprint(
+    store: str | Path | StoreBackend, fingerprint: str
+) -> str | None:
     """The committed version whose manifest carries ``fingerprint``, if any."""
     layout = StoreLayout(store)
     if not layout.exists():

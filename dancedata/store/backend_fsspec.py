@@ -1,0 +1,287 @@
+"""A store on object storage or another fsspec filesystem (``s3://bucket/prefix``, ...).
+
+Same layout and contract as a local store; what differs is how a version is committed, since
+object stores have no atomic rename of a folder (``renames_atomically`` is False):
+
+1. The version is built under ``versions/.tmp-*/`` (workers write there).
+2. ``manifest.json`` and ``checksums.json`` are written there; every object is copied
+   server-side to ``versions/vN/``, the manifest last (:meth:`FsspecBackend.publish`).
+3. ``store.json`` is rewritten to name ``vN``: **this single PUT is the commit point.**
+4. The temporary prefix is deleted.
+
+Readers resolve versions through ``store.json``: a version is committed when its manifest exists
+and its number is at most the one ``store.json`` names. A writer that dies anywhere before step
+3 leaves nothing a reader can see (the next writer removes the leftovers); one that dies after it
+has committed. S3 (and its compatible servers) give strong read-after-write consistency for
+single objects, which is all this relies on.
+
+The writer lock is ``STORE/.lock`` created with a conditional PUT (``If-None-Match: *``), which
+S3 and moto honour. Where a filesystem does not support exclusive creation the lock falls back
+to check-then-write, which two writers starting in the same instant could both pass: run one
+writer per remote store. A lock left by a dead writer on this host is taken over; a lock from
+another host is never judged stale (remove it with care).
+
+Credentials and endpoints come from the protocol's usual environment (see
+:mod:`dancedata.store.fs`).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Hashable, Iterable
+from typing import Any
+
+from dancedata.errors import StoreError
+from dancedata.store.backend import Bytes, StoreBackend, join
+from dancedata.store.fs import remote_fs, storage_options
+from dancedata.store.lock import LOCK_FILE, describe_holder, holder_is_stale, this_holder
+
+
+class FsspecBackend(StoreBackend):
+    """A store rooted at an fsspec URL. Keys map to ``<bucket/prefix>/<key>``."""
+
+    renames_atomically = False
+
+    def __init__(self, url: str, _fs: Any = None) -> None:
+        self.url = str(url).rstrip("/")
+        if _fs is None:
+            self.fs, self.base = remote_fs(self.url)
+        else:
+            self.fs, self.base = _fs, _strip_protocol(self.url)
+
+    def __repr__(self) -> str:
+        return f"FsspecBackend({self.url!r})"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, FsspecBackend) and other.url == self.url
+
+    def __hash__(self) -> int:
+        return hash(self.url)
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"url": self.url}  # the filesystem is rebuilt from the URL and the environment
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__init__(state["url"])  # type: ignore[misc]
+
+    def key(self, key: str) -> str:
+        """Filesystem path (no protocol) of a store key."""
+        return f"{self.base}/{key}" if key else self.base
+
+    def where(self, key: str = "") -> str:
+        return f"{self.url}/{key}" if key else self.url
+
+    def describe(self) -> str:
+        return self.url
+
+    def locator(self, key: str = "") -> str:
+        return self.where(key)
+
+    def at(self, key: str) -> FsspecBackend:
+        return FsspecBackend(self.where(key), _fs=self.fs) if key else self
+
+    def sibling(self, name: str) -> FsspecBackend:
+        return FsspecBackend(f"{self.url.rsplit('/', 1)[0]}/{name}", _fs=self.fs)
+
+    def invalidate(self) -> None:
+        self.fs.invalidate_cache()
+
+    # -- reading -------------------------------------------------------------------------------
+    def read_bytes(self, key: str) -> bytes:
+        return self.fs.cat_file(self.key(key))
+
+    def is_file(self, key: str) -> bool:
+        # not fs.isfile: fsspec's swallows every error, so a dead endpoint or missing
+        # credentials read as "no such file" ("not a dancedata store")
+        try:
+            return self.fs.info(self.key(key)).get("type") == "file"
+        except FileNotFoundError:
+            return False
+
+    def is_dir(self, key: str) -> bool:
+        self.fs.invalidate_cache()
+        return bool(self.fs.isdir(self.key(key)))
+
+    def exists(self, key: str) -> bool:
+        self.fs.invalidate_cache()
+        return bool(self.fs.exists(self.key(key)))
+
+    def list_dir(self, key: str) -> list[str]:
+        self.fs.invalidate_cache()
+        prefix = self.key(key)
+        try:
+            entries = self.fs.ls(prefix, detail=False)
+        except FileNotFoundError:
+            return []
+        own = prefix.rstrip("/")
+        return sorted(
+            {p.rstrip("/").rsplit("/", 1)[-1] for p in entries if p.rstrip("/") != own}
+        )
+
+    def find(self, key: str, *, skip_top: Iterable[str] = ()) -> list[str]:
+        self.fs.invalidate_cache()
+        prefix = self.key(key).rstrip("/")
+        skip = set(skip_top)
+        found = []
+        for path in self.fs.find(prefix):
+            rel = path[len(prefix) + 1 :]
+            if rel and rel.split("/", 1)[0] not in skip:
+                found.append(rel)
+        return sorted(found)
+
+    def size(self, key: str) -> int:
+        return int(self.fs.size(self.key(key)))
+
+    def file_sizes(self, key: str, *, skip_top: Iterable[str] = ()) -> dict[str, int]:
+        """One listing (sizes come with it), not one request per file."""
+        self.fs.invalidate_cache()
+        prefix = self.key(key).rstrip("/")
+        skip = set(skip_top)
+        found = {}
+        for path, info in self.fs.find(prefix, detail=True).items():
+            rel = path[len(prefix) + 1 :]
+            if rel and rel.split("/", 1)[0] not in skip:
+                found[rel] = int(info.get("size") or 0)
+        return dict(sorted(found.items()))
+
+    def identity(self, key: str) -> Hashable | None:
+        return None  # every key is its own object: a copy is never "the same file"
+
+    def content_key(self, key: str) -> Hashable | None:
+        try:
+            info = self.fs.info(self.key(key))
+        except OSError:
+            return None
+        etag = info.get("ETag") or info.get("etag") or info.get("md5Hash")
+        return ("etag", str(etag).strip('"'), info.get("size")) if etag else None
+
+    # -- writing -------------------------------------------------------------------------------
+    def write_bytes(self, key: str, data: Bytes | Iterable[Bytes], *, durable: bool = True) -> None:
+        """One PUT: atomic on object stores."""
+        if not isinstance(data, bytes | bytearray | memoryview):
+            data = b"".join(bytes(piece) for piece in data)
+        self.fs.pipe_file(self.key(key), bytes(data))
+
+    def create_exclusive(self, key: str, data: bytes) -> bool | None:
+        try:
+            self.fs.pipe_file(self.key(key), data, mode="create")
+            return True
+        except FileExistsError:
+            return False
+        except (TypeError, NotImplementedError, ValueError):
+            return None
+
+    def delete(self, key: str) -> None:
+        self.fs.invalidate_cache()
+        path = self.key(key)
+        if self.fs.exists(path):
+            self.fs.rm(path, recursive=True)
+
+    def _copy(self, pairs: list[tuple[str, str]]) -> None:
+        if pairs:
+            self.fs.copy([self.key(s) for s, _ in pairs], [self.key(d) for _, d in pairs])
+
+    def carry_over(self, src: str, dst: str, *, skip_top: Iterable[str] = ()) -> None:
+        """Server-side copy of every object under ``src`` (top-level names in ``skip_top``
+        left out)."""
+        self._copy([(join(src, rel), join(dst, rel)) for rel in self.find(src, skip_top=skip_top)])
+
+    def publish(self, tmp: str, final: str, *, leave_out: str, last: str) -> None:
+        """Copy ``tmp`` to ``final`` server-side, ``last`` (the manifest) last; an earlier
+        writer's copy that never reached the pointer is removed first. ``tmp`` stays until
+        the caller deletes it after the pointer PUT."""
+        self.delete(final)
+        files = self.find(tmp, skip_top=[leave_out])
+        self._copy([(join(tmp, rel), join(final, rel)) for rel in files if rel != last])
+        if last in files:
+            self._copy([(join(tmp, last), join(final, last))])
+
+    def writer_lock(self, *, wait: bool) -> ObjectStoreLock:
+        return ObjectStoreLock(self, wait=wait)
+
+    # -- zarr ----------------------------------------------------------------------------------
+    def zarr_store(self, key: str, *, read_only: bool = False) -> Any:
+        from zarr.storage import FsspecStore
+
+        return FsspecStore.from_url(
+            self.where(key), storage_options=storage_options() or None, read_only=read_only
+        )
+
+
+def _strip_protocol(url: str) -> str:
+    return url.split("://", 1)[1].rstrip("/") if "://" in url else url.rstrip("/")
+
+
+class ObjectStoreLock:
+    """``STORE/.lock`` on an object store, created by a conditional PUT."""
+
+    def __init__(self, backend: FsspecBackend, *, wait: bool, timeout_s: float = 24 * 3600.0):
+        self.backend = backend
+        self.wait = wait
+        self.timeout_s = timeout_s
+        self.record: dict[str, Any] | None = None
+
+    @property
+    def path(self) -> str:
+        return self.backend.key(LOCK_FILE)
+
+    def _create(self, record: dict[str, Any]) -> bool:
+        body = json.dumps(record).encode()
+        created = self.backend.create_exclusive(LOCK_FILE, body)
+        if created is not None:
+            return created
+        # no exclusive create here: check, write, read back (best effort)
+        if self.backend.is_file(LOCK_FILE):
+            return False
+        self.backend.write_bytes(LOCK_FILE, body)
+        return self._holder() == record
+
+    def _holder(self) -> dict[str, Any] | None:
+        try:
+            return json.loads(self.backend.read_bytes(LOCK_FILE))
+        except FileNotFoundError:
+            return None
+        except ValueError:
+            return {}
+
+    def acquire(self) -> None:
+        if self.record is not None:
+            return  # already ours (taken by hold_store_lock before the plan)
+        deadline = time.monotonic() + self.timeout_s
+        announced = False
+        while True:
+            record = this_holder()
+            if self._create(record):
+                self.record = record
+                return
+            holder = self._holder()
+            if holder is None:
+                continue  # released meanwhile
+            if holder and isinstance(holder.get("pid"), int) and holder_is_stale(holder):
+                print(f"took over a stale store lock ({describe_holder(holder)})", file=sys.stderr)
+                self.backend.delete(LOCK_FILE)
+                continue
+            who = describe_holder(holder) if holder else "an unreadable lock record"
+            if not self.wait:
+                raise StoreError(
+                    f"store is locked by another writer ({who}); rerun with --wait to queue",
+                    self.backend.url,
+                )
+            if time.monotonic() > deadline:
+                raise StoreError(f"gave up waiting for the lock held by {who}", self.backend.url)
+            if not announced:
+                print(f"waiting for the store lock held by {who} ...", file=sys.stderr)
+                announced = True
+            time.sleep(0.5)
+
+    def release(self) -> None:
+        if self.record is None:
+            return
+        if self._holder() == self.record:
+            self.backend.delete(LOCK_FILE)
+        self.record = None
+
+
+__all__ = ["FsspecBackend", "ObjectStoreLock"]
