@@ -1,0 +1,66 @@
+"""A real S3-compatible server (moto in server mode) on 127.0.0.1, for tests of stores on object
+storage: one place for what test_remote, test_checkout and the store conformance suite need.
+
+:func:`moto_s3` starts the server, points the AWS environment of this process (and so of CLI
+subprocesses, which inherit it) at it, creates the buckets, and restores everything after.
+``s3_env`` is the same as a module-scoped fixture; import it into a test module to use it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import socket
+from collections.abc import Iterator
+
+import pytest
+
+CREDENTIALS = {
+    "AWS_ACCESS_KEY_ID": "testing",
+    "AWS_SECRET_ACCESS_KEY": "testing",
+    "AWS_DEFAULT_REGION": "us-east-1",
+}
+
+
+@contextlib.contextmanager
+def moto_s3(*buckets: str) -> Iterator[dict[str, str]]:
+    """Run a moto S3 server on a free loopback port while the block runs; yields the environment
+    (credentials, region, ``AWS_ENDPOINT_URL``) that is also set in ``os.environ`` meanwhile."""
+    moto_server = pytest.importorskip("moto.server")
+    s3fs = pytest.importorskip("s3fs")
+    logging.getLogger("werkzeug").setLevel(logging.ERROR)
+    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server.start()
+    host, port = server.get_host_and_port()
+    env = {**CREDENTIALS, "AWS_ENDPOINT_URL": f"http://{host}:{port}"}
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    s3fs.S3FileSystem.clear_instance_cache()
+    try:
+        fs = s3fs.S3FileSystem()
+        for bucket in buckets:
+            fs.mkdir(bucket)
+        yield env
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+        s3fs.S3FileSystem.clear_instance_cache()
+        server.stop()
+
+
+@pytest.fixture(scope="module")
+def s3_env() -> Iterator[dict[str, str]]:
+    """A moto S3 server on loopback for the module; buckets are made by the tests."""
+    with moto_s3() as env:
+        yield env
+
+
+def closed_port() -> int:
+    """A loopback TCP port nothing listens on (bound, then released): connecting is refused."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
