@@ -112,16 +112,18 @@ class FrameArrays(FrameArrayTarget):
             )
         self.declared = True
 
-    def append(self, arrays: dict[str, np.ndarray]) -> None:
-        """Append one block of rows to every declared array (all the same length)."""
-        lengths = set()
+    def append(self, arrays: dict[str, np.ndarray], n_frames: int | None = None) -> None:
+        """Append one block of rows to every declared array: exactly the declared names, all
+        ``n_frames`` long (when given; else all of one length)."""
+        if set(arrays) != set(self.writers):
+            raise ValueError(
+                f"a record's arrays {sorted(arrays)} are not the declared {sorted(self.writers)}"
+            )
+        lengths = {len(block) for block in arrays.values()}
+        if len(lengths) > 1 or (n_frames is not None and lengths and lengths != {n_frames}):
+            raise ValueError(f"a record's arrays hold {sorted(lengths)} rows, not {n_frames}")
         for name, writer in self.writers.items():
-            if name not in arrays:
-                raise ValueError(f"record lacks the declared array {name!r}")
             writer.append(arrays[name])
-            lengths.add(len(arrays[name]))
-        if len(lengths) > 1:
-            raise ValueError(f"arrays of one record differ in length: {sorted(lengths)}")
         self.frames += lengths.pop() if lengths else 0
 
     def close(self, group_attrs: dict[str, dict[str, Any]]) -> None:
@@ -248,7 +250,7 @@ def _write_version(
             if not arrays.declared:
                 arrays.declare(source.array_specs(record))
             record.frame_start = arrays.frames
-            arrays.append(record.arrays)
+            arrays.append(record.arrays, record.n_frames)
             record.arrays = {}  # written: memory holds one sequence at a time
             records.append(record)
         arrays.close(source.group_attrs())

@@ -20,10 +20,11 @@ How a source plugs in (see :class:`Source` for each hook's contract):
    skips or fails by ``--on-error``).
 4. ``array_specs(first)`` declares the stored arrays from the first accepted record;
    ``music_table(records)`` and ``tables(records)`` give the music table and any other tables;
-   ``counts(records, totals)`` the manifest counts. Optional hooks: ``under_lock`` (store
-   state the fingerprint depends on, e.g. ``--append``), ``prepare`` (input work done only
-   when there is something to ingest, e.g. music headers), ``open`` (copy a parent's frames),
-   ``group_attrs``, ``kept_sequences``.
+   ``counts(records, totals)`` the manifest counts. Optional hooks: ``check_store`` (refuse a
+   store before the lock), ``under_lock`` (store state the fingerprint depends on, e.g.
+   ``--append``), ``prepare`` (input work done only when there is something to ingest, e.g.
+   music headers; may drop tasks), ``open`` (copy a parent's frames), ``check_task`` (refuse a
+   sequence before its read is used), ``group_attrs``, ``kept_sequences``.
 5. Add a CLI command that builds the options and calls
    ``ingest(store, source_named("<name>")(inputs, options))``, and the source's tests.
 """
