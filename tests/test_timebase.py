@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dancedata.compute.timebase import (
+from dancedata.compute.resample import (
     check_frame_count,
     resample_by_time,
     resample_poses,

@@ -29,11 +29,8 @@ from typing import Any, Literal
 import numpy as np
 
 from dancedata.compute.pose_tracking import fill_gaps, fill_tracked_gaps, track_openpose
-from dancedata.compute.timebase import (
-    Resampled,
-    check_frame_count,
-    resample_by_time,
-)
+from dancedata.compute.resample import ResampledPoses as Resampled
+from dancedata.compute.resample import check_frame_count, resample_by_time
 from dancedata.errors import InputError
 from dancedata.ingest.video_inputs import VideoInputs
 from dancedata.io.joints_csv import read_joints_csv
