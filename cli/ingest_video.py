@@ -8,7 +8,17 @@ from typing import Annotated
 
 import typer
 from dancedata.cli.apps import ingest_app
-from dancedata.cli.common import Json, OnError, OnErrorOpt, Quiet, Wait, report, setup
+from dancedata.cli.common import (
+    Dask,
+    Json,
+    OnError,
+    OnErrorOpt,
+    Quiet,
+    Wait,
+    Workers,
+    report,
+    setup,
+)
 
 
 class Units(StrEnum):
@@ -127,6 +137,8 @@ def ingest_video_cmd(
     up_axis: Annotated[
         str, typer.Option(help="Up axis recorded in the motion attrs (image frames: -y).")
     ] = "-y",
+    workers: Workers = 1,
+    dask: Dask = None,
     on_error: OnErrorOpt = OnError.fail,
     wait: Wait = False,
     quiet: Quiet = False,
@@ -137,7 +149,9 @@ def ingest_video_cmd(
     into a new store version: motion/pose2d (x, y px, confidence; NaN where missing) with
     motion/pose2d_mask (0 missing, 1 detected, 2 gap-filled), motion/positions (metres).
     Pose and video frame counts must agree unless --allow-drift. Without VIDEO, the pose files
-    are the clock: give --fps; pose frame i (from the file name) is at i / fps."""
+    are the clock: give --fps; pose frame i (from the file name) is at i / fps. Videos are read
+    on --workers processes (or --dask); a killed run, run again, reads only the videos it had
+    not finished."""
     setup(quiet)
     from dancedata.ingest.video import VideoIngestOptions, ingest_video
     from dancedata.ingest.video_poses import PoseSettings
@@ -163,6 +177,8 @@ def ingest_video_cmd(
         ),
         on_error=on_error.value,
         wait_for_lock=wait,
+        workers=workers,
+        dask=dask,
     )
     from dancedata.store.first_write import remove_store_if_left_empty
 

@@ -43,9 +43,9 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
 
-from dancedata.errors import DancedataError, InputError
+from dancedata.errors import InputError
+from dancedata.ingest.source import InputChecksums, SkipPolicy
 from dancedata.io.audio import MUSIC_EXTENSIONS, find_music
 from dancedata.io.openpose import keypoint_file_prefix, list_keypoint_files
 from dancedata.store.checksums import describe_input
@@ -243,27 +243,12 @@ def pose_only_inputs(
 # ----------------------------------------------------------------------------- planning
 
 
-class Skips(Protocol):
-    """``--on-error``: re-raise a bad input, or record it and go on."""
-
-    def fail_or_skip(self, exc: DancedataError, path: Path | str) -> None: ...
-
-
-class Checksums(Protocol):
-    """Input files described once per run: ``described`` (key → manifest input entry) and
-    ``sha`` (a file's sha256, describing it when new)."""
-
-    described: dict[str, dict[str, Any]]
-
-    def sha(self, path: Path) -> str: ...
-
-
 def find_video_inputs(
     videos: list[Path],
     poses: Path | None,
     joints_csv: Path | None,
     music: Path | None,
-    skips: Skips,
+    skips: SkipPolicy,
 ) -> list[VideoInputs]:
     """The inputs of every video (none given: of every pose sequence); a video whose inputs
     are missing goes through ``skips``. InputError when none is left."""
@@ -280,7 +265,7 @@ def find_video_inputs(
     return found
 
 
-def pose_digest(checksums: Checksums, inputs: VideoInputs) -> str:
+def pose_digest(checksums: InputChecksums, inputs: VideoInputs) -> str:
     """One manifest input for a video's pose files: the folder (and file prefix), their total
     bytes, file count, and the sha256 over ``<file name>:<sha256>`` lines."""
     key = str(inputs.poses) + (
@@ -301,7 +286,7 @@ def pose_digest(checksums: Checksums, inputs: VideoInputs) -> str:
     return checksums.described[key]["sha256"]
 
 
-def sequence_key(checksums: Checksums, inputs: VideoInputs) -> str:
+def sequence_key(checksums: InputChecksums, inputs: VideoInputs) -> str:
     """Fingerprint line binding a sequence id to its inputs' checksums."""
     parts = [
         inputs.seq_id,
@@ -313,7 +298,7 @@ def sequence_key(checksums: Checksums, inputs: VideoInputs) -> str:
     return "|".join(parts)
 
 
-def sequence_sha256(checksums: Checksums, inputs: VideoInputs) -> str:
+def sequence_sha256(checksums: InputChecksums, inputs: VideoInputs) -> str:
     """The checksum the sequences table records: the video's, else the pose folder's digest,
     else the joints CSV's."""
     if inputs.has_video:
