@@ -15,6 +15,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
 from dancedata.store.validate import validate_store
@@ -65,15 +67,19 @@ def test_two_workers_write_the_same_bytes_as_one(tmp_path: Path) -> None:
     assert [r["frame_start"] for r in rows] == [0, 30, 61, 93]  # 30, 31, 32, 33 frames
 
 
-def test_a_killed_ingest_resumes_with_the_videos_it_finished(tmp_path: Path) -> None:
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_a_killed_ingest_resumes_with_the_videos_it_finished(tmp_path: Path, workers: str) -> None:
+    """SIGKILL to the whole process group (worker processes too) once a video is finished,
+    then the same command again (same --workers)."""
     folder = videos_with_poses(tmp_path / "in", n_videos=6, n_frames=400)
+    args = ingest_args(folder, tmp_path / "store", "--no-music", "--workers", workers)
     reference = tmp_path / "reference"
     run_cli(*ingest_args(folder, reference, "--no-music", "-q"))
 
     store = tmp_path / "store"
     layout = StoreLayout(store)
     proc = subprocess.Popen(
-        [sys.executable, "-m", "dancedata.cli", *ingest_args(folder, store, "--no-music", "-q")],
+        [sys.executable, "-m", "dancedata.cli", *args, "-q"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         start_new_session=True,
@@ -91,7 +97,7 @@ def test_a_killed_ingest_resumes_with_the_videos_it_finished(tmp_path: Path) -> 
     assert layout.temp_dirs(), "the killed run should have left its build behind"
     assert not list((store / "versions").glob("v*"))
 
-    out = run_cli(*ingest_args(folder, store, "--no-music")).stdout
+    out = run_cli(*args).stdout
     assert "v1" in out
     counts = VersionReader(store).manifest["counts"]
     assert counts["units"] == 6 and 1 <= counts["resumed_units"] < 6, counts
