@@ -41,7 +41,11 @@ from tests.helpers import REPO, importorskip_unless_ci, run_cli
 
 importorskip_unless_ci("distributed")
 
-from dancedata.exec.executors import ClusterError, DaskExecutor  # noqa: E402
+from dancedata.exec.executors import (  # noqa: E402
+    NO_WORKERS_TIMEOUT_ENV,
+    ClusterError,
+    DaskExecutor,
+)
 
 DASK = Path(sys.executable).parent / "dask"
 START_TIMEOUT_S = 120.0  # two workers import dask on a shared 2-core machine
@@ -329,11 +333,12 @@ def test_a_killed_worker_is_survived(fresh_cluster):
     assert results == {i: i * i for i in items}
 
 
-def test_losing_every_worker_fails_in_bounded_time(fresh_cluster):
+def test_losing_every_worker_fails_in_bounded_time(fresh_cluster, monkeypatch):
+    monkeypatch.setenv(NO_WORKERS_TIMEOUT_ENV, f"{NO_WORKERS_S:g}")
     killed_at: list[float] = []
 
     def run() -> None:
-        with DaskExecutor(fresh_cluster.address, no_workers_timeout=NO_WORKERS_S) as executor:
+        with DaskExecutor(fresh_cluster.address) as executor:
             for _ in executor.map_unordered(_slow_square, list(range(12))):
                 if not killed_at:
                     fresh_cluster.kill_worker(0)
@@ -361,7 +366,7 @@ def test_featurize_without_workers_fails_and_a_later_run_resumes(raw, tmp_path):
     empty = Cluster(tmp_path / "cluster", n_workers=0)
     try:
         args = ("featurize", str(store), "-q", "--no-audio", "--dask", empty.address)
-        env = {"DANCEDATA_DASK_NO_WORKERS_TIMEOUT": f"{NO_WORKERS_S:g}"}
+        env = {NO_WORKERS_TIMEOUT_ENV: f"{NO_WORKERS_S:g}"}
         start = time.monotonic()
         proc = run_cli(*args, check=False, env=env, timeout=300)
         assert proc.returncode == 1, proc.stderr
