@@ -94,6 +94,13 @@ def validate(
         if problems:
             for problem in problems:
                 typer.echo(f"invalid: {problem}", err=True)
+            unverified = [p for p in problems if "checksums.json: missing" in p]
+            if deep and unverified:
+                typer.echo(
+                    f"not verified (deep): {len(unverified)} version(s) of {store} have no "
+                    "checksums.json, so their data could not be checked at all",
+                    err=True,
+                )
         else:
             typer.echo(f"valid{' (deep)' if deep else ''}: {store}")
     if problems:

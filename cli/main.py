@@ -143,6 +143,16 @@ def main() -> None:
         exc.show()  # type: ignore[attr-defined]
         message = exc.format_message()  # type: ignore[attr-defined]
         _fail(message, exc.exit_code, as_json=as_json, kind="usage")  # type: ignore[attr-defined]
+    except Exception as exc:
+        # The storage failed under the command (an object store that cannot be reached or
+        # refuses the credentials, a full disk): one line naming the endpoint, not a traceback.
+        from dancedata.store.fs import storage_problem
+
+        problem = storage_problem(exc)
+        if problem is None:
+            raise
+        typer.echo(f"error: {problem}", err=True)
+        _fail(problem, 1, as_json=as_json, kind="StorageError")
     else:
         # standalone_mode=False: typer returns the code of an Exit (130 for Ctrl-C), or the
         # command's return value (None).

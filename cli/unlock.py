@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -11,7 +10,7 @@ from dancedata.cli.main import app
 
 @app.command()
 def unlock(
-    store: Annotated[Path, typer.Argument(help="Store directory.")],
+    store: Annotated[str, typer.Argument(help="Store directory or fsspec URL (s3://...).")],
     force: Annotated[
         bool,
         typer.Option(
@@ -24,6 +23,6 @@ def unlock(
     """Remove a stale write lock. A lock whose writer is still running here is never removed;
     writers take over stale locks of this host by themselves, so this is mostly for locks left
     by a writer on another machine sharing the store."""
-    from dancedata.store.lock import unlock as run
+    from dancedata.store.unlock import unlock as run
 
     typer.echo(run(store, force=force))

@@ -28,8 +28,8 @@ from dancedata.store.lock import (
     judge_holder,
     process_start_ticks,
     this_holder,
-    unlock,
 )
+from dancedata.store.unlock import unlock
 from dancedata.store.validate import validate_store, validate_version
 from dancedata.synth.aist import synth_aist
 from tests.helpers import REPO, run_cli

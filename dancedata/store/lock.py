@@ -11,7 +11,8 @@ machine has rebooted since (other ``boot_id``), or the pid now belongs to anothe
 ``STORE/.lock.guard`` and only if the lock still holds the same token, so two writers breaking
 the same stale lock cannot both win. A lock written on **another host** is never taken over:
 this host cannot tell whether that writer still runs. ``dancedata unlock STORE --force`` (or
-deleting ``STORE/.lock``) clears it once you know it is dead.
+deleting ``STORE/.lock``) clears it once you know it is dead (:mod:`dancedata.store.unlock`,
+on every backend).
 """
 
 from __future__ import annotations
@@ -106,12 +107,24 @@ def read_holder(path: Path) -> dict[str, Any] | None:
     """The lock record at ``path``; None when there is no lock file. Raises StoreError for a
     file that exists but is not a lock record (never written by dancedata: not auto-cleared)."""
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except FileNotFoundError:
         return None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
         raise StoreError(
             f"unreadable lock file ({exc}); remove it if no writer runs", path
+        ) from None
+    return parse_holder(data, path)
+
+
+def parse_holder(data: bytes, where: str | Path) -> dict[str, Any]:
+    """The lock record in ``data`` (the bytes of a lock file at ``where``, a path or a URL);
+    StoreError naming ``where`` when they are not a dancedata lock record."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise StoreError(
+            f"unreadable lock file ({exc}); remove it if no writer runs", where
         ) from None
     try:
         holder = json.loads(text)
@@ -121,9 +134,25 @@ def read_holder(path: Path) -> dict[str, Any] | None:
         raise StoreError(
             "lock file is not a dancedata lock record; if no writer runs, remove it "
             "(dancedata unlock STORE --force)",
-            path,
+            where,
         )
     return holder
+
+
+def read_store_holder(backend: Any) -> dict[str, Any] | None:
+    """The lock record of the store at ``backend`` (a :class:`~dancedata.store.backend.
+    StoreBackend`, any kind), None when unlocked; StoreError naming the lock file when it is
+    not a lock record or cannot be read."""
+    where = backend.where(LOCK_FILE)
+    try:
+        data = backend.read_bytes(LOCK_FILE)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise StoreError(
+            f"unreadable lock file ({exc}); remove it if no writer runs", where
+        ) from None
+    return parse_holder(data, where)
 
 
 @dataclass(frozen=True)
@@ -327,9 +356,7 @@ class StoreLock:
             state = judge_holder(holder)
             if state.status == "stale":
                 notice = f"took over a stale store lock: {describe_holder(holder)}; {state.reason}"
-                if remove_lock_if(
-                    self.root, holder, functools.partial(_say, notice)
-                ):
+                if remove_lock_if(self.root, holder, functools.partial(_say, notice)):
                     self.took_over.append(holder)
                 continue
             message = self._busy_message(holder, state)
@@ -371,31 +398,3 @@ class StoreLock:
 
     def __exit__(self, *exc: object) -> None:
         self.release()
-
-
-def unlock(root: str | Path, *, force: bool = False) -> str:
-    """Clear ``root/.lock`` by hand. Stale locks always; a foreign-host or unreadable lock only
-    with ``force``; a lock whose holder runs on this host never. Returns what was done."""
-    root = Path(root)
-    path = root / LOCK_FILE
-    try:
-        holder = read_holder(path)
-    except StoreError:
-        if not force:
-            raise
-        path.unlink(missing_ok=True)
-        return f"removed unreadable lock file {path}"
-    if holder is None:
-        return f"{root} is not locked"
-    state = judge_holder(holder)
-    if state.status == "live":
-        raise StoreError(f"lock is held by a running writer, {describe_holder(holder)}", root)
-    if state.status == "foreign" and not force:
-        raise StoreError(
-            f"lock is {state.reason} ({describe_holder(holder)}); this host cannot tell whether "
-            "it still runs. Pass --force once you know it is dead",
-            root,
-        )
-    if not remove_lock_if(root, holder):
-        return f"{root}: the lock changed hands meanwhile; nothing removed"
-    return f"removed the lock of {describe_holder(holder)} ({state.reason})"

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Any
 
 from dancedata.store.checkout import checkout_log
-from dancedata.store.checksums import sha256_file
 from dancedata.store.integrity import CHECKSUMS_FILE
 from dancedata.store.layout import TABLE_FILES, StoreLayout
 from dancedata.store.reader import VersionReader
@@ -50,7 +49,7 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
     reader = VersionReader(store, version)
     manifest = reader.manifest
     info: dict[str, Any] = {
-        "store": str(Path(store)),
+        "store": reader.layout.backend.describe(),  # as given: a path, or a URL kept whole
         "version": reader.version,
         "latest": reader.layout.latest(),
         "versions": reader.layout.committed_versions(),
@@ -114,11 +113,11 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
 def record_hash(reader: VersionReader) -> str | None:
     """sha256 of the version's checksums.json: the end of the chain of integrity records
     (docs/STORE.md, 'What records the record'), to pin outside the store; None when the
-    version has no record (remote stores, versions from before checksums)."""
-    if reader.remote:
+    version has no record (versions from before checksums). Read through the version's
+    backend, so local and object stores answer alike."""
+    if not reader.files.is_file(CHECKSUMS_FILE):
         return None
-    path = Path(reader.path) / CHECKSUMS_FILE
-    return sha256_file(path) if path.is_file() else None
+    return reader.files.sha256(CHECKSUMS_FILE)
 
 
 def format_info(info: dict[str, Any]) -> str:

@@ -10,7 +10,6 @@ A damaged manifest (not an object, fields of the wrong type) is one problem, nev
 from __future__ import annotations
 
 import json
-import os
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -20,7 +19,6 @@ import numpy as np
 
 from dancedata.errors import StoreError
 from dancedata.store.contract import store_schema
-from dancedata.store.fs import is_remote
 from dancedata.store.integrity import verify_store
 from dancedata.store.layout import MANIFEST_FILE, ZARR_DIR, StoreLayout
 from dancedata.store.reader import VersionReader
@@ -53,11 +51,10 @@ def validate_store(
         names = committed if version is None else [layout.resolve(version)]
     except StoreError as exc:
         return [*problems, str(exc)]
-    # checksums.json is recorded by local commits only (remote stores: see store.remote)
-    integrity = (
-        {name: [] for name in names} if is_remote(store) else verify_store(store, names, deep=deep)
-    )
-    if version is None and not is_remote(store):
+    # every backend: checksums.json read through the layout's backend (a version without one
+    # passes the cheap check, and fails --deep: nothing could be verified)
+    integrity = verify_store(layout.backend, names, deep=deep)
+    if version is None:
         problems += _damaged_version_dirs(layout, committed)
     scanned: dict[Any, tuple[int, int]] = {}  # arrays shared by hard link are scanned once
     for name in names:
@@ -78,22 +75,24 @@ _VERSION_NAME = re.compile(r"^v\d+$")
 
 def _damaged_version_dirs(layout: StoreLayout, committed: list[str]) -> list[str]:
     """One problem per ``versions/vN`` entry that is not a committed version (no manifest.json,
-    or one that is not a usable manifest), naming the file."""
-    folder = layout.versions_dir
-    if not folder.is_dir():
-        return []
+    or one that is not a usable manifest), naming the file. On object stores only the entries
+    store.json commits are looked at: a copy past it is a dead writer's leftover, replaced by
+    the next writer, not damage."""
+    backend = layout.backend
     problems = []
-    for entry in sorted(folder.iterdir(), key=lambda p: p.name):
-        if not _VERSION_NAME.match(entry.name) or entry.name in committed:
+    for name in layout.version_dirs():
+        if name in committed:
             continue
-        manifest = entry / MANIFEST_FILE
-        if not entry.is_dir():
+        key = layout.version_key(name)
+        entry = layout.version_dir(name)
+        manifest = backend.where(f"{key}/{MANIFEST_FILE}")
+        if not backend.is_dir(key):
             problems.append(f"{entry}: not a version directory")
-        elif not manifest.is_file():
+        elif not backend.is_file(f"{key}/{MANIFEST_FILE}"):
             problems.append(f"{manifest}: missing (a damaged or half-restored version)")
         else:
             try:
-                value = json.loads(manifest.read_text(encoding="utf-8"))
+                value = json.loads(backend.read_bytes(f"{key}/{MANIFEST_FILE}").decode("utf-8"))
             except (OSError, ValueError) as exc:
                 problems.append(f"{manifest}: unreadable ({exc})")
                 continue
@@ -396,24 +395,20 @@ def nonfinite_rows(array: Any, *, allow_nan: bool, chunks: int | None = None) ->
 
 
 def _array_files_key(reader: VersionReader, name: str, allow_nan: bool) -> Any:
-    """What identifies an array's values on disk: shape, dtype and the inode of each chunk file
-    (versions that carry the array over by hard link share them; its zarr.json is a copy, so
-    it is left out); None on remote stores."""
-    if reader.remote:
-        return None
+    """What identifies an array's values in storage: shape, dtype and the identity of each
+    chunk file (an inode locally: versions that carry the array over by hard link share them;
+    its zarr.json is a copy, so it is left out); None where the backend cannot tell (object
+    stores: every version holds its own objects)."""
     array = reader.array(name)
-    folder = reader.path / ZARR_DIR / name
+    folder = f"{ZARR_DIR}/{name}"
     chunks = []
-    for dirpath, _dirnames, filenames in os.walk(folder):
-        for file in filenames:
-            path = os.path.join(dirpath, file)
-            if file == "zarr.json" and dirpath == str(folder):
-                continue
-            try:
-                st = os.lstat(path)
-            except OSError:
-                return None
-            chunks.append((os.path.relpath(path, folder), st.st_dev, st.st_ino, st.st_size))
+    for rel in reader.files.find(folder):
+        if rel == "zarr.json":
+            continue
+        identity = reader.files.identity(f"{folder}/{rel}")
+        if identity is None:
+            return None
+        chunks.append((rel, identity))
     return (tuple(array.shape), str(array.dtype), allow_nan, tuple(sorted(chunks)))
 
 
@@ -447,22 +442,18 @@ def _check_finite(
 
 def store_notes(store: str | Path) -> list[str]:
     """Things worth knowing that are not contract violations: unfinished temporary versions
-    (never visible to readers; the next writer resumes or removes them) and the write lock."""
-    from dancedata.store.lock import LOCK_FILE, describe_holder, judge_holder, read_holder
+    (never visible to readers; the next writer resumes or removes them) and the write lock,
+    on every backend."""
+    from dancedata.store.lock import describe_holder, judge_holder, read_store_holder
 
     layout = StoreLayout(store)
-    if is_remote(store):
-        return [
-            f"unfinished temporary version {url.rsplit('/', 1)[-1]} (invisible to readers)"
-            for url in layout.temp_dirs()
-        ]
     notes = [
-        f"unfinished temporary version {path.name} (invisible to readers; the next writer "
+        f"unfinished temporary version {name} (invisible to readers; the next writer "
         "resumes or removes it)"
-        for path in layout.temp_dirs()
+        for name in layout.temp_names()
     ]
     try:
-        holder = read_holder(layout.root / LOCK_FILE)
+        holder = read_store_holder(layout.backend)
     except StoreError as exc:
         return [*notes, str(exc)]
     if holder is not None:
