@@ -93,12 +93,20 @@ _STORAGE_ERRNOS = {
 
 
 def storage_problem(exc: BaseException) -> str | None:
-    """``"no space left on the device (ENOSPC)"`` for an OSError that is a condition of the
-    storage (full, read-only, no permission, ...), else None.
+    """What is wrong with the storage, in one line, when ``exc`` is a condition of the storage
+    rather than a bug; else None.
 
-    pyarrow reports write failures as OSError without an errno, with the C library's message in
-    the text; that message is matched too.
+    - An OSError of a full, read-only, forbidden, ... filesystem:
+      ``"no space left on the device (ENOSPC)"``. pyarrow reports write failures as OSError
+      without an errno, with the C library's message in the text; that message is matched too.
+    - An object store that cannot be reached or refuses who we are (botocore's errors, raised
+      as they are or as the cause of s3fs's OSError), naming the endpoint:
+      ``"cannot reach S3 endpoint http://127.0.0.1:9: connection refused"``,
+      ``"no S3 credentials found for endpoint ...: ..."``.
     """
+    remote = _object_store_problem(exc)
+    if remote is not None:
+        return remote
     import errno as errno_mod
 
     if not isinstance(exc, OSError):
@@ -116,11 +124,128 @@ def storage_problem(exc: BaseException) -> str | None:
 
 
 def storage_error(exc: BaseException, store: str | Path, doing: str) -> StoreError | None:
-    """A one-line StoreError naming ``store`` for a storage OSError raised while ``doing``
-    (e.g. "writing a new version"); None when ``exc`` is not such an error."""
+    """A one-line StoreError for a storage failure raised while ``doing`` (e.g. "writing a new
+    version"): naming ``store`` for a filesystem condition, naming the endpoint (which is what
+    is wrong, whatever the store) for an object store that cannot be reached or refuses the
+    credentials. None when ``exc`` is not such an error."""
+    remote = _object_store_problem(exc)
+    if remote is not None:
+        return StoreError(remote)
     problem = storage_problem(exc)
     if problem is None:
         return None
     where = getattr(exc, "filename", None)
     detail = f" at {where}" if where and str(where) != str(store) else ""
     return StoreError(f"{problem} while {doing}{detail}", store)
+
+
+# botocore's names for "the server cannot be reached" and "we have no usable credentials"
+_UNREACHABLE = {
+    "EndpointConnectionError",
+    "ConnectTimeoutError",
+    "ConnectionClosedError",
+    "ProxyConnectionError",
+    "SSLError",
+}
+_NO_CREDENTIALS = {"NoCredentialsError", "PartialCredentialsError", "CredentialRetrievalError"}
+_REFUSED_CREDENTIALS = {
+    "InvalidAccessKeyId",
+    "SignatureDoesNotMatch",
+    "ExpiredToken",
+    "InvalidToken",
+    "TokenRefreshRequired",
+}
+_SOCKET_REASONS = {
+    "ECONNREFUSED": "connection refused",
+    "ETIMEDOUT": "connection timed out",
+    "EHOSTUNREACH": "host unreachable",
+    "ENETUNREACH": "network unreachable",
+    "ECONNRESET": "connection reset",
+}
+
+
+def _chain(exc: BaseException) -> list[BaseException]:
+    """``exc`` and the exceptions it was raised from or during, outermost first."""
+    found: list[BaseException] = []
+    current: BaseException | None = exc
+    while current is not None and current not in found and len(found) < 16:
+        found.append(current)
+        current = current.__cause__ or current.__context__
+    return found
+
+
+def _object_store_problem(exc: BaseException) -> str | None:
+    """The one line for an object store that cannot be reached or refuses the credentials
+    (see :func:`storage_problem`); None for anything else."""
+    for error in _chain(exc):
+        kind = type(error)
+        if not kind.__module__.startswith(("botocore", "aiobotocore")):
+            continue
+        name = kind.__name__
+        kwargs = getattr(error, "kwargs", None) or {}
+        if name in _UNREACHABLE:
+            endpoint = _origin(kwargs.get("endpoint_url")) or configured_endpoint()
+            return f"cannot reach S3 endpoint {endpoint}: {_socket_reason(error)}"
+        if name in _NO_CREDENTIALS:
+            return (
+                f"no S3 credentials found for endpoint {configured_endpoint()}: set "
+                "AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY (or AWS_PROFILE)"
+            )
+        response = getattr(error, "response", None)
+        code = (response or {}).get("Error", {}).get("Code") if isinstance(response, dict) else None
+        if code in _REFUSED_CREDENTIALS:
+            message = (response or {}).get("Error", {}).get("Message") or code
+            return (
+                f"S3 endpoint {configured_endpoint()} refused the credentials ({code}: {message})"
+            )
+    return None
+
+
+def _socket_reason(error: BaseException) -> str:
+    """Why a connection failed ("connection refused", ...), from the socket error under a
+    botocore error."""
+    import errno as errno_mod
+    import socket
+
+    for inner in [*_chain(error), *_chain(getattr(error, "kwargs", {}).get("error") or error)]:
+        for candidate in (inner, getattr(inner, "os_error", None)):
+            if isinstance(candidate, socket.gaierror):
+                return "host name not found"
+            number = getattr(candidate, "errno", None)
+            code = errno_mod.errorcode.get(number) if isinstance(number, int) else None
+            if code in _SOCKET_REASONS:
+                return _SOCKET_REASONS[code]
+    if type(error).__name__ == "ConnectTimeoutError":
+        return "connection timed out"
+    if type(error).__name__ == "SSLError":
+        return "TLS handshake failed"
+    return "connection failed"
+
+
+def _origin(url: Any) -> str | None:
+    """``scheme://host:port`` of a request URL (the endpoint, without bucket and key)."""
+    if not isinstance(url, str) or "://" not in url:
+        return None
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(url)
+    return f"{parts.scheme}://{parts.netloc}"
+
+
+def configured_endpoint() -> str:
+    """The S3 endpoint this process talks to: ``endpoint_url`` of DANCEDATA_STORAGE_OPTIONS
+    (or its ``client_kwargs``), else AWS_ENDPOINT_URL_S3 / AWS_ENDPOINT_URL, else AWS's own."""
+    try:
+        options = storage_options()
+    except StoreError:
+        options = {}
+    client = options.get("client_kwargs")
+    for value in (
+        options.get("endpoint_url"),
+        client.get("endpoint_url") if isinstance(client, dict) else None,
+        os.environ.get("AWS_ENDPOINT_URL_S3"),
+        os.environ.get("AWS_ENDPOINT_URL"),
+    ):
+        if isinstance(value, str) and value.strip():
+            return value.strip().rstrip("/")
+    return "https://s3.amazonaws.com (the AWS default)"
