@@ -192,3 +192,37 @@ def test_remote_versions_get_the_same_checksums_record_as_local_ones(stores):
     assert check_record(zeroed, deep=False) == []
     problems = check_record(zeroed, deep=True)
     assert len(problems) == 1 and chunk in problems[0] and "sha256 differs" in problems[0]
+
+
+def test_remote_children_reference_the_parents_unchanged_files(stores):
+    """Issue 15 item 1: a remote version stores only what changed; every other file is named in
+    references.json with the version that holds it, and reads, checksums and the deep check go
+    through the references (data equality with the local store is checked above)."""
+    from dancedata.store.integrity import check_record, load_record
+    from dancedata.store.references import REFERENCES_FILE, parse_references
+
+    fs = s3fs.S3FileSystem()
+    fs.invalidate_cache()
+    prefix = f"{BUCKET}/stores/demo/versions"
+    assert not fs.exists(f"{prefix}/v1/{REFERENCES_FILE}")  # no parent: holds everything
+    remote = StoreLayout(stores["url"])
+    for version in ("v2", "v3"):
+        refs = parse_references(fs.cat_file(f"{prefix}/{version}/{REFERENCES_FILE}"), version)
+        record = load_record(remote.version_backend(version))["files"]
+        stored = {p[len(f"{prefix}/{version}/") :] for p in fs.find(f"{prefix}/{version}")}
+        assert refs and set(refs) <= set(record)
+        assert not set(refs) & stored  # referenced files are not stored again
+        assert set(record) == (stored - {REFERENCES_FILE, "manifest.json", "checksums.json"}) | set(
+            refs
+        )
+        for rel, holder in refs.items():
+            assert holder != version and fs.exists(f"{prefix}/{holder}/{rel}"), (rel, holder)
+            assert not fs.exists(f"{prefix}/{holder}/{REFERENCES_FILE}") or rel not in json.loads(
+                fs.cat_file(f"{prefix}/{holder}/{REFERENCES_FILE}")
+            )["files"]  # a reference always names the version that holds the bytes
+        assert check_record(remote.version_backend(version), deep=True) == []
+    # segment changes only tables: v3 references every zarr file of v2 (or v1 through it)
+    v3_refs = parse_references(fs.cat_file(f"{prefix}/v3/{REFERENCES_FILE}"), "v3")
+    v2_record = load_record(remote.version_backend("v2"))["files"]
+    chunks = [r for r in v2_record if r.startswith("data.zarr/") and "/c/" in r]
+    assert chunks and all(r in v3_refs for r in chunks)

@@ -183,10 +183,19 @@ class StoreBackend(ABC):
         server-side copy on object stores."""
 
     @abstractmethod
-    def publish(self, tmp: str, final: str, *, leave_out: str, last: str) -> None:
+    def publish(
+        self, tmp: str, final: str, *, leave_out: str, last: str, base: str | None = None
+    ) -> None:
         """Make the finished folder ``tmp`` visible as ``final`` (which does not exist yet as
         a committed version): one rename locally, a copy on object stores with ``last``
-        copied last. ``tmp/leave_out`` (build state) does not go along."""
+        copied last, where files equal to those of the committed version ``base`` (the
+        parent) are referenced instead of copied (:mod:`dancedata.store.references`).
+        ``tmp/leave_out`` (build state) does not go along."""
+
+    def version_view(self, key: str) -> StoreBackend:
+        """The committed version folder ``key`` as readers see it: every file of the version at
+        its own path, wherever it is stored (see :mod:`dancedata.store.references`)."""
+        return self.at(key)
 
     @abstractmethod
     def writer_lock(self, *, wait: bool) -> Any:

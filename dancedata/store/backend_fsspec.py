@@ -34,9 +34,15 @@ from collections.abc import Hashable, Iterable
 from typing import Any
 
 from dancedata.errors import StoreError
-from dancedata.store.backend import Bytes, StoreBackend, join
+from dancedata.store.backend import Bytes, StoreBackend, base_name, join, parent_key
 from dancedata.store.fs import remote_fs, storage_options
 from dancedata.store.lock import LOCK_FILE, describe_holder, holder_is_stale, this_holder
+from dancedata.store.references import (
+    REFERENCES_FILE,
+    ReferencedVersion,
+    parse_references,
+    references_body,
+)
 
 
 class FsspecBackend(StoreBackend):
@@ -183,20 +189,92 @@ class FsspecBackend(StoreBackend):
         if pairs:
             self.fs.copy([self.key(s) for s, _ in pairs], [self.key(d) for _, d in pairs])
 
-    def carry_over(self, src: str, dst: str, *, skip_top: Iterable[str] = ()) -> None:
-        """Server-side copy of every object under ``src`` (top-level names in ``skip_top``
-        left out)."""
-        self._copy([(join(src, rel), join(dst, rel)) for rel in self.find(src, skip_top=skip_top)])
+    def version_view(self, key: str) -> StoreBackend:
+        refs = self._references(key)
+        version = self.at(key)
+        return ReferencedVersion(version, refs) if refs else version
 
-    def publish(self, tmp: str, final: str, *, leave_out: str, last: str) -> None:
+    def _references(self, version: str) -> dict[str, str]:
+        """The references.json of a committed version folder ({} when it has none)."""
+        try:
+            data = self.read_bytes(join(version, REFERENCES_FILE))
+        except FileNotFoundError:
+            return {}
+        return parse_references(data, self.where(join(version, REFERENCES_FILE)))
+
+    def _stored(self, version: str, *, skip_top: Iterable[str] = ()) -> dict[str, Any]:
+        """{rel: (ETag, size)} of the objects physically under a folder, from one listing."""
+        self.fs.invalidate_cache()
+        prefix = self.key(version).rstrip("/")
+        skip = set(skip_top)
+        found: dict[str, Any] = {}
+        for path, info in self.fs.find(prefix, detail=True).items():
+            rel = path[len(prefix) + 1 :]
+            if rel and rel.split("/", 1)[0] not in skip:
+                etag = info.get("ETag") or info.get("etag")
+                found[rel] = (str(etag).strip('"') if etag else None, info.get("size"))
+        return found
+
+    def _physical(self, version: str, *, skip_top: Iterable[str] = ()) -> dict[str, str]:
+        """{rel: key of the object holding it} for every file of a committed version folder,
+        its references resolved (references.json itself left out)."""
+        skip = set(skip_top)
+        held = {
+            rel: join(version, rel)
+            for rel in self.find(version, skip_top=skip)
+            if rel != REFERENCES_FILE
+        }
+        versions_dir = parent_key(version)
+        for rel, holder in self._references(version).items():
+            if rel.split("/", 1)[0] not in skip:
+                held[rel] = join(versions_dir, holder, rel)
+        return held
+
+    def carry_over(self, src: str, dst: str, *, skip_top: Iterable[str] = ()) -> None:
+        """Server-side copy of every file of the committed version ``src`` (top-level names in
+        ``skip_top`` left out), wherever its references say it is stored."""
+        held = self._physical(src, skip_top=skip_top)
+        self._copy([(source, join(dst, rel)) for rel, source in sorted(held.items())])
+
+    def publish(
+        self, tmp: str, final: str, *, leave_out: str, last: str, base: str | None = None
+    ) -> None:
         """Copy ``tmp`` to ``final`` server-side, ``last`` (the manifest) last; an earlier
-        writer's copy that never reached the pointer is removed first. ``tmp`` stays until
-        the caller deletes it after the pointer PUT."""
+        writer's copy that never reached the pointer is removed first. A file whose ETag and
+        size equal those of the parent ``base``'s file at the same path is not copied but
+        named in ``final/references.json`` (with the version that holds it). ``tmp`` stays
+        until the caller deletes it after the pointer PUT."""
         self.delete(final)
-        files = self.find(tmp, skip_top=[leave_out])
-        self._copy([(join(tmp, rel), join(final, rel)) for rel in files if rel != last])
-        if last in files:
+        built = self._stored(tmp, skip_top=[leave_out])
+        refs = self._unchanged(built, base, last) if base is not None else {}
+        copies = [
+            (join(tmp, rel), join(final, rel)) for rel in built if rel != last and rel not in refs
+        ]
+        self._copy(copies)
+        if refs:
+            self.write_bytes(join(final, REFERENCES_FILE), references_body(refs))
+        if last in built:
             self._copy([(join(tmp, last), join(final, last))])
+
+    def _unchanged(self, built: dict[str, Any], base: str, last: str) -> dict[str, str]:
+        """{rel: holding version} of the built files whose bytes the parent already holds."""
+        versions_dir, parent = parent_key(base), base_name(base)
+        base_refs = self._references(base)
+        listings: dict[str, dict[str, Any]] = {}
+
+        def stored_in(version: str) -> dict[str, Any]:
+            if version not in listings:
+                listings[version] = self._stored(join(versions_dir, version))
+            return listings[version]
+
+        refs: dict[str, str] = {}
+        for rel, (etag, size) in built.items():
+            if rel in (last, REFERENCES_FILE) or etag is None:
+                continue
+            holder = base_refs.get(rel, parent)
+            if stored_in(holder).get(rel) == (etag, size):
+                refs[rel] = holder
+        return refs
 
     def writer_lock(self, *, wait: bool) -> ObjectStoreLock:
         return ObjectStoreLock(self, wait=wait)

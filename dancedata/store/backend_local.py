@@ -216,9 +216,12 @@ class LocalBackend(StoreBackend):
                 except OSError:
                     shutil.copy2(source, target)
 
-    def publish(self, tmp: str, final: str, *, leave_out: str, last: str) -> None:
+    def publish(
+        self, tmp: str, final: str, *, leave_out: str, last: str, base: str | None = None
+    ) -> None:
         """One rename of the folder (atomic). The build state leaves first by a rename of its
-        own, so a kill anywhere before the commit rename still finds it to resume from."""
+        own, so a kill anywhere before the commit rename still finds it to resume from. (The
+        parent's files are shared by hard links already: ``base`` is not needed.)"""
         source = self.path(tmp)
         spent = None
         if (source / leave_out).exists():

@@ -221,8 +221,9 @@ class StoreLayout:
         return self.backend.where(self.version_key(name))
 
     def version_backend(self, name: str) -> StoreBackend:
-        """The backend rooted at ``versions/<name>``."""
-        return self.backend.at(self.version_key(name))
+        """The committed version ``versions/<name>`` as a backend rooted there, every file at
+        its own path wherever it is stored (see :mod:`dancedata.store.references`)."""
+        return self.backend.version_view(self.version_key(name))
 
     def exists(self) -> bool:
         self.backend.invalidate()
@@ -389,10 +390,10 @@ class StoreLayout:
 
     # -- reading files of a version ------------------------------------------------------------
     def has_file(self, version: str, rel: str) -> bool:
-        return self.backend.is_file(f"{self.version_key(version)}/{rel}")
+        return self.version_backend(version).is_file(rel)
 
     def read_bytes(self, version: str, rel: str) -> bytes:
-        return self.backend.read_bytes(f"{self.version_key(version)}/{rel}")
+        return self.version_backend(version).read_bytes(rel)
 
     def zarr_location(self, version: str) -> str:
         return str(self.backend.where(f"{self.version_key(version)}/{ZARR_DIR}"))

@@ -386,7 +386,10 @@ class VersionWriter:
         # The finished units' build state stays until the last moment, so a kill anywhere
         # before the commit still resumes them (see StoreBackend.publish).
         final = self.layout.version_key(name)
-        self.backend.publish(self._key(), final, leave_out=BUILD_DIR, last=MANIFEST_FILE)
+        base = self.layout.version_key(self.parent) if self.parent else None
+        self.backend.publish(
+            self._key(), final, leave_out=BUILD_DIR, last=MANIFEST_FILE, base=base
+        )
         self.committed_as = name
         spent, self.tmp_key, self.tmp = self.tmp_key, final, self.backend.where(final)
         try:
