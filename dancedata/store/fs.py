@@ -20,17 +20,12 @@ STORAGE_OPTIONS_ENV = "DANCEDATA_STORAGE_OPTIONS"
 
 
 def is_remote(store: str | Path) -> bool:
-    """True for an fsspec URL other than ``file://`` (a ``Path`` is always local)."""
+    """True for an fsspec URL other than ``file://`` (a ``Path`` is always local). The store
+    modules ask their backend's capabilities instead (:mod:`dancedata.store.backend`)."""
     if isinstance(store, Path):
         return False
     text = str(store)
     return "://" in text and not text.startswith("file://")
-
-
-def local_path(store: str | Path) -> Path:
-    """A local store's directory (``file://`` prefix removed)."""
-    text = str(store)
-    return Path(text[len("file://") :] if text.startswith("file://") else text)
 
 
 def storage_options() -> dict[str, Any]:
@@ -60,19 +55,6 @@ def remote_fs(url: str) -> tuple[Any, str]:
     except (ImportError, ValueError) as exc:
         raise StoreError(f"cannot open this store URL: {exc}", url) from None
     return fs, path.rstrip("/")
-
-
-def zarr_store(location: str | Path, *, read_only: bool = False) -> Any:
-    """A zarr v3 store object for a local directory or a remote URL."""
-    if is_remote(location):
-        from zarr.storage import FsspecStore
-
-        return FsspecStore.from_url(
-            str(location), storage_options=storage_options() or None, read_only=read_only
-        )
-    from zarr.storage import LocalStore
-
-    return LocalStore(str(local_path(location)), read_only=read_only)
 
 
 # -- operating-system failures while writing a store --------------------------------------------
