@@ -54,6 +54,7 @@ __all__ = [
     "MusicTable",
     "ReadTask",
     "SequenceRecord",
+    "SettingsConflict",
     "SkipPolicy",
     "Source",
     "StoredArray",
@@ -65,9 +66,16 @@ ON_ERROR_CHOICES = ("fail", "skip")
 # ----------------------------------------------------------------------------- inputs
 
 
+class SettingsConflict(InputError):
+    """An input that contradicts the ones accepted before it under the run's settings (ingest
+    video: a video at another frame rate than the first, without ``--fps``). The settings are
+    at fault rather than the input, so ``--on-error skip`` does not skip it: the run fails."""
+
+
 class SkipPolicy:
     """``--on-error``: "fail" re-raises the first bad input; "skip" records it (file and
-    problem) for the manifest's ``skipped`` list and goes on."""
+    problem) for the manifest's ``skipped`` list and goes on. A :class:`SettingsConflict` is
+    always re-raised."""
 
     def __init__(self, on_error: str) -> None:
         if on_error not in ON_ERROR_CHOICES:
@@ -76,7 +84,7 @@ class SkipPolicy:
         self.skipped: list[dict[str, str]] = []
 
     def fail_or_skip(self, exc: DancedataError, path: Path | str | None) -> None:
-        if self.on_error != "skip":
+        if self.on_error != "skip" or isinstance(exc, SettingsConflict):
             raise exc
         self.skipped.append({"path": str(exc.path or path or ""), "error": exc.problem})
 

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from dancedata.errors import DancedataError, InputError
+from dancedata.errors import InputError
 from dancedata.ingest.engine import ingest
 from dancedata.ingest.registry import register_source
 from dancedata.ingest.source import (
@@ -230,10 +230,7 @@ class VideoSource(Source):
             self.specs = pose_arrays(seq.poses)
             self.first = seq.without_arrays()
         else:
-            try:
-                check_consistent(self.first, seq)
-            except InputError as exc:
-                raise _never_skipped(self.skips, exc) from None
+            check_consistent(self.first, seq)  # a setting problem: never skipped
         self.skips.skipped += [{"path": p, "error": e} for p, e in seq.poses.bad_files]
         music, poses, options = seq.music, seq.poses, self.options
         return SequenceRecord(
@@ -276,15 +273,6 @@ class VideoSource(Source):
 
 def _sequences(records: list[SequenceRecord]) -> list[VideoSequence]:
     return [r.item for r in records]
-
-
-def _never_skipped(skips: SkipPolicy, exc: DancedataError) -> DancedataError:
-    """A video that disagrees with the first (frame rate, body model, CSV joints) is a setting
-    problem, not a bad input: it fails the run under ``--on-error skip`` too. The engine skips
-    what ``accept`` raises when skipping is on, so the policy is turned to "fail" for this one
-    error (the run ends with it)."""
-    skips.on_error = "fail"
-    return exc
 
 
 def ingest_video(

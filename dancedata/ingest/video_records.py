@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from dancedata.errors import InputError
-from dancedata.ingest.source import InputChecksums, StoredArray
+from dancedata.ingest.source import InputChecksums, SettingsConflict, StoredArray
 from dancedata.ingest.video_inputs import VideoInputs
 from dancedata.ingest.video_music import MusicTrack, music_from_file
 from dancedata.ingest.video_poses import MASK_CODES, VideoPoses
@@ -105,24 +105,24 @@ def music_rows(seqs: list[VideoSequence], genre: str | None, fps: float) -> dict
 
 
 def check_consistent(first: VideoSequence, seq: VideoSequence) -> None:
-    """Every sequence of one store shares the frame rate and skeletons (InputError naming the
-    file and the first video otherwise)."""
+    """Every sequence of one store shares the frame rate and skeletons: otherwise a
+    SettingsConflict naming the file and the first video (never skipped: a setting problem)."""
     a, b = first.poses, seq.poses
     video = seq.inputs.video
     if abs(a.fps - b.fps) > 1e-9:
-        raise InputError(
+        raise SettingsConflict(
             f"frame rate {b.fps:g} differs from {a.fps:g} of {first.inputs.video.name}; pass "
             "--fps to resample every video to one rate",
             video,
         )
     if (a.skeleton2d and a.skeleton2d.name) != (b.skeleton2d and b.skeleton2d.name):
-        raise InputError(
+        raise SettingsConflict(
             f"body model {b.skeleton2d.name if b.skeleton2d else None} differs from "
             f"{a.skeleton2d.name if a.skeleton2d else None} of {first.inputs.video.name}",
             seq.inputs.poses or video,
         )
     if a.skeleton3d != b.skeleton3d:
-        raise InputError(
+        raise SettingsConflict(
             f"the joints CSV's joints differ from those of {first.inputs.video.name}",
             seq.inputs.joints_csv or video,
         )
