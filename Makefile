@@ -27,7 +27,7 @@ DEMO_RESULTS := data/stores/aist-demo-experiment
 # The sequence drawn for docs/img/plot.png (default: the store's first, looked up at run time).
 DEMO_PLOT_SEQ ?= $$($(PY) -c "import dancedata; print(dancedata.open_store('$(DEMO_STORE)').seq_ids()[0])")
 
-.PHONY: install install-dev install-stems install-viz browser pipeline test lint bench fuzz clean
+.PHONY: install install-dev install-stems install-viz browser pipeline test lint bench fuzz clean schema
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -93,6 +93,11 @@ fuzz: $(DEV_STAMP)
 
 lint: $(DEV_STAMP)
 	$(BIN)/ruff check .
+
+# The arrays and extension_arrays of schemas/store.schema.json, from the arrays the code declares
+# (tests/test_family_framework.py fails when the committed file differs).
+schema: $(STAMP)
+	$(PY) -m dancedata.pipeline.schema_arrays
 
 clean:
 	rm -rf data/raw data/stores .pytest_cache
