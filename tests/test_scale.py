@@ -21,7 +21,7 @@ import dancedata.pipeline.featurize as featurize_module
 from dancedata.ingest import resumable_reads as reads_module
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.featurize_units import plan_motion_units
+from dancedata.pipeline.featurize_tasks import plan_motion_tasks as plan_motion_units
 from dancedata.pipeline.segment import SegmentOptions, segment
 from dancedata.store.arrays import CHUNK_FRAMES
 from dancedata.store.layout import StoreLayout
