@@ -40,6 +40,9 @@ DEFAULT_NO_WORKERS_TIMEOUT_S = 30.0
 NO_WORKERS_TIMEOUT_ENV = "DANCEDATA_DASK_NO_WORKERS_TIMEOUT"
 # Seconds between looks at the cluster while no unit finishes.
 _POLL_S = 1.0
+# Seconds to fetch a finished unit's result (small: a dict of counts) before looking again.
+_FETCH_TIMEOUT_S = 5.0
+_NOT_FETCHED = object()
 # Seconds closing the client may take (the scheduler may be gone).
 _CLOSE_TIMEOUT_S = 10.0
 
@@ -246,6 +249,7 @@ class DaskExecutor(Executor):
             _no_workers_timeout() if no_workers_timeout is None else float(no_workers_timeout)
         )
         self._cluster = None
+        self._failed = False  # a ClusterError was raised: close quietly
         self.client: Any = None
         if address.startswith("local:"):
             text = address.split(":", 1)[1] or "1"
@@ -288,6 +292,7 @@ class DaskExecutor(Executor):
             raise self._error(f"no scheduler answers ({_first_line(exc)})") from None
 
     def _error(self, problem: str) -> ClusterError:
+        self._failed = True
         return ClusterError(f"the Dask cluster at {self.address}: {problem}")
 
     def map_unordered(
@@ -318,6 +323,14 @@ class DaskExecutor(Executor):
                     index = pending.pop(future)
                     if future.status == "cancelled":
                         raise self._cancelled(len(pending) + 1)
+                    if future.status == "finished":
+                        value = self._fetch(future, len(pending) + 1)
+                        if value is _NOT_FETCHED:
+                            pending[future] = index
+                            watch.check(len(pending))
+                            continue
+                        yield index, value
+                        continue
                     if future.status == "error":
                         exc = future.exception()
                         if isinstance(exc, KilledWorker):
@@ -333,12 +346,27 @@ class DaskExecutor(Executor):
                             future.result()
                         submit(index)
                         continue
-                    yield index, future.result()
+                    pending[future] = index  # back to pending meanwhile (its data was lost)
         finally:
             if pending and self.client.status == "running":
                 # Best effort, while failing already.
                 with contextlib.suppress(Exception):
                     self.client.cancel(list(pending))
+
+    def _fetch(self, future: Any, left: int) -> Any:
+        """The result of a finished unit, or ``_NOT_FETCHED`` when it does not arrive within
+        ``_FETCH_TIMEOUT_S``: the worker holding it died meanwhile, and the scheduler computes
+        it again (when it has a worker: the caller keeps watching)."""
+        try:
+            return future.result(timeout=_FETCH_TIMEOUT_S)
+        except TimeoutError:
+            return _NOT_FETCHED
+        except CancelledError:
+            raise self._cancelled(left) from None
+        except OSError as exc:
+            raise self._error(
+                f"lost the connection to the scheduler ({_first_line(exc)})"
+            ) from None
 
     @contextlib.contextmanager
     def _talking(self) -> Iterator[None]:
@@ -374,11 +402,12 @@ class DaskExecutor(Executor):
 
     def close(self) -> None:
         if self.client is not None:
-            # With the scheduler gone, closing cancels the client's attempts to reconnect, which
-            # Dask logs as an error with a traceback: the run has said what happened already.
-            lost = self.client.status != "running"
+            # After a cluster failure (scheduler gone, workers gone), closing cancels the
+            # client's reconnects and fetches, which Dask logs as errors with tracebacks: the run
+            # has said what happened already, in one line.
+            quiet = self._failed or self.client.status != "running"
             with (
-                _silenced("distributed.client", "distributed.utils") if lost else _nothing(),
+                _silenced("distributed.client", "distributed.utils") if quiet else _nothing(),
                 contextlib.suppress(OSError, TimeoutError),
             ):
                 self.client.close(timeout=_CLOSE_TIMEOUT_S)
