@@ -12,11 +12,7 @@ command reports "waiting for the store lock" before letting the lock go.
 from __future__ import annotations
 
 import json
-import os
-import signal
 import subprocess
-import sys
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -30,42 +26,10 @@ from dancedata.store.lock import LOCK_FILE, StoreLock
 from dancedata.store.reader import VersionReader
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
-from tests.helpers import REPO, run_cli
-
-TIMEOUT_S = 120.0
-
+from tests import race_harness as race
+from tests.helpers import run_cli
 
 # ----------------------------------------------------------------------------- processes
-
-
-def _start(*args: str, stderr: Path) -> subprocess.Popen:
-    """``dancedata ARGS`` in its own session (so SIGSTOP/SIGCONT reach only it)."""
-    with open(stderr, "w") as err:
-        return subprocess.Popen(
-            [sys.executable, "-m", "dancedata.cli", *args],
-            cwd=REPO,
-            stdout=subprocess.PIPE,
-            stderr=err,
-            text=True,
-            start_new_session=True,
-        )
-
-
-def _until(condition: Callable[[], bool], what: str, proc: subprocess.Popen | None = None) -> None:
-    deadline = time.monotonic() + TIMEOUT_S
-    while not condition():
-        if proc is not None and proc.poll() is not None:
-            raise AssertionError(f"process exited ({proc.returncode}) before {what}")
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.005)
-
-
-def _lock_pid(store: Path) -> int | None:
-    try:
-        return json.loads((store / LOCK_FILE).read_text())["pid"]
-    except (OSError, ValueError, KeyError):
-        return None
 
 
 def _queued(store: Path, tmp_path: Path, commands: list[tuple[str, ...]]) -> list[str]:
@@ -77,17 +41,17 @@ def _queued(store: Path, tmp_path: Path, commands: list[tuple[str, ...]]) -> lis
     try:
         for i, args in enumerate(commands):
             err = tmp_path / f"queued-{i}.err"
-            proc = _start(*args, "--wait", stderr=err)
+            proc = race.start(*args, "--wait", stderr=err)
             procs.append(proc)
             errs.append(err)
-            _until(lambda err=err: "waiting for the store lock" in err.read_text(), "wait", proc)
+            race.waiting(proc, err)
     except BaseException:
         for proc in procs:
             proc.kill()
         raise
     finally:
         lock.release()
-    outs = [proc.communicate(timeout=TIMEOUT_S)[0] for proc in procs]
+    outs = [proc.communicate(timeout=race.TIMEOUT_S)[0] for proc in procs]
     codes = [proc.returncode for proc in procs]
     assert codes == [0] * len(procs), (codes, outs, [e.read_text() for e in errs])
     return outs
@@ -99,35 +63,19 @@ def frozen() -> Iterator[Callable[..., subprocess.Popen]]:
     started: list[subprocess.Popen] = []
 
     def freeze(store: Path, *args: str, stderr: Path) -> subprocess.Popen:
-        before = StoreLayout(store).committed_versions()
-        proc = _start(*args, stderr=stderr)
+        proc = race.freeze(store, *args, stderr=stderr, what="the first command to take the lock")
         started.append(proc)
-        _until(lambda: _lock_pid(store) == proc.pid, "the first command to take the lock", proc)
-        os.killpg(proc.pid, signal.SIGSTOP)
-        assert StoreLayout(store).committed_versions() == before, "froze it too late"
         return proc
 
     yield freeze
     for proc in started:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGCONT)
-            try:
-                proc.wait(timeout=TIMEOUT_S)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
+        race.finish(proc)
 
 
 def _behind_frozen(frozen_proc: subprocess.Popen, tmp_path: Path, *args: str) -> tuple[str, str]:
     """Start ``dancedata ARGS --wait`` while ``frozen_proc`` holds the lock, let it finish,
     then return (stdout of the frozen command, stdout of the queued one)."""
-    err = tmp_path / "second.err"
-    second = _start(*args, "--wait", stderr=err)
-    _until(lambda: "waiting for the store lock" in err.read_text(), "the --wait message", second)
-    os.killpg(frozen_proc.pid, signal.SIGCONT)
-    out_first, _ = frozen_proc.communicate(timeout=TIMEOUT_S)
-    assert frozen_proc.returncode == 0, out_first
-    out, _ = second.communicate(timeout=TIMEOUT_S)
-    assert second.returncode == 0, err.read_text()
+    out_first, out, _ = race.queue_behind(frozen_proc, tmp_path, *args)
     return out_first, out
 
 

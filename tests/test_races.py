@@ -9,12 +9,7 @@ version not yet committed); the second command is started, and the test waits un
 
 from __future__ import annotations
 
-import json
-import os
-import signal
 import subprocess
-import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -25,11 +20,11 @@ from dancedata.store.lock import LOCK_FILE
 from dancedata.store.reader import VersionReader
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
-from tests.helpers import REPO, run_cli
+from tests import race_harness as race
+from tests.helpers import run_cli
 
 # Motion only: the race is about versions, not features, and this keeps featurize ~1 s of work.
 FEATURIZE = ("featurize", "--no-audio", "-q")
-TIMEOUT_S = 120.0
 
 
 @pytest.fixture(scope="module")
@@ -46,66 +41,31 @@ def store(raw: Path, tmp_path: Path) -> Path:
     return path
 
 
-def _start(*args: str, stderr: Path) -> subprocess.Popen:
-    with open(stderr, "w") as err:
-        return subprocess.Popen(
-            [sys.executable, "-m", "dancedata.cli", *args],
-            cwd=REPO,
-            stdout=subprocess.PIPE,
-            stderr=err,
-            text=True,
-            start_new_session=True,
-        )
-
-
-def _until(condition, what: str, proc: subprocess.Popen | None = None) -> None:
-    deadline = time.monotonic() + TIMEOUT_S
-    while not condition():
-        if proc is not None and proc.poll() is not None:
-            raise AssertionError(f"process exited ({proc.returncode}) before {what}")
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.005)
-
-
-def _lock_pid(store: Path) -> int | None:
-    try:
-        return json.loads((store / LOCK_FILE).read_text())["pid"]
-    except (OSError, ValueError, KeyError):
-        return None
-
-
 @pytest.fixture
 def frozen_featurize(store: Path, tmp_path: Path) -> Iterator[subprocess.Popen]:
     """A featurize run stopped (SIGSTOP) while it holds the lock, before it commits."""
-    proc = _start(*FEATURIZE, str(store), stderr=tmp_path / "first.err")
+    proc = None
     try:
-        _until(lambda: _lock_pid(store) == proc.pid, "the first featurize to take the lock", proc)
-        os.killpg(proc.pid, signal.SIGSTOP)
+        proc = race.freeze(
+            store,
+            *FEATURIZE,
+            str(store),
+            stderr=tmp_path / "first.err",
+            what="the first featurize to take the lock",
+        )
         assert StoreLayout(store).committed_versions() == ["v1"], "froze it too late"
         yield proc
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGCONT)
-            try:
-                proc.wait(timeout=TIMEOUT_S)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
+        if proc is not None:
+            race.finish(proc)
 
 
 def _queue_behind(frozen: subprocess.Popen, tmp_path: Path, *args: str) -> tuple[str, str]:
     """Start ``dancedata ARGS --wait`` while ``frozen`` holds the lock, let ``frozen`` finish,
     and return the second command's (stdout, stderr)."""
-    err = tmp_path / "second.err"
-    second = _start(*args, "--wait", stderr=err)
-    _until(lambda: "waiting for the store lock" in err.read_text(), "the --wait message", second)
-    os.killpg(frozen.pid, signal.SIGCONT)
-    out_first, _ = frozen.communicate(timeout=TIMEOUT_S)
-    assert frozen.returncode == 0, (tmp_path / "first.err").read_text()
+    out_first, out, err = race.queue_behind(frozen, tmp_path, *args)
     assert "wrote version v2" in out_first
-    out, _ = second.communicate(timeout=TIMEOUT_S)
-    assert second.returncode == 0, err.read_text()
-    return out, err.read_text()
+    return out, err
 
 
 def test_segment_waiting_behind_featurize_keeps_the_features(frozen_featurize, store, tmp_path):
@@ -139,21 +99,27 @@ def test_second_ingest_of_the_same_data_waiting_for_the_lock_adds_no_duplicate(
     result committed by the writer it waited for and commits nothing."""
     other = tmp_path / "raw2"
     synth_aist(other, n_sequences=2, seed=4)
-    holder = _start(*FEATURIZE, str(store), stderr=tmp_path / "first.err")
+    holder = race.freeze(
+        store,
+        *FEATURIZE,
+        str(store),
+        stderr=tmp_path / "first.err",
+        what="featurize to take the lock",
+    )
     try:
-        _until(lambda: _lock_pid(store) == holder.pid, "featurize to take the lock", holder)
-        os.killpg(holder.pid, signal.SIGSTOP)
         errs = [tmp_path / "ingest-a.err", tmp_path / "ingest-b.err"]
         ingests = [
-            _start("ingest", "aist", str(other), "--store", str(store), "--wait", "-q", stderr=e)
+            race.start(
+                "ingest", "aist", str(other), "--store", str(store), "--wait", "-q", stderr=e
+            )
             for e in errs
         ]
         for proc, err in zip(ingests, errs, strict=True):
-            _until(lambda err=err: "waiting for the store lock" in err.read_text(), "wait", proc)
+            race.waiting(proc, err)
     finally:
-        os.killpg(holder.pid, signal.SIGCONT)
-    holder.communicate(timeout=TIMEOUT_S)
-    outs = [p.communicate(timeout=TIMEOUT_S)[0] for p in ingests]
+        race.thaw(holder)
+    holder.communicate(timeout=race.TIMEOUT_S)
+    outs = [p.communicate(timeout=race.TIMEOUT_S)[0] for p in ingests]
     assert [p.returncode for p in ingests] == [0, 0], [e.read_text() for e in errs]
     committed = StoreLayout(store).committed_versions()
     assert committed == ["v1", "v2", "v3"], (committed, outs)  # v2 featurize, v3 one ingest
