@@ -38,9 +38,16 @@ from typing import Any
 
 from dancedata.compute.bvh_units import parse_units
 from dancedata.errors import InputError
+from dancedata.ingest.bvh_append import (
+    AppendedVersion,
+    already_appended,
+    check_new_ids,
+    read_appended_version,
+)
 from dancedata.ingest.bvh_arrays import SOURCE, BvhRig, copy_parent_frames, motion_arrays
 from dancedata.ingest.bvh_inputs import DEFAULT_GLOB, BvhInput, resolve_inputs
 from dancedata.ingest.bvh_motion import BvhMotion, BvhSettings, process_bvh
+from dancedata.ingest.bvh_music import music_table_rows, music_tracks
 from dancedata.ingest.engine import ingest
 from dancedata.ingest.registry import register_source
 from dancedata.ingest.source import (
@@ -55,12 +62,10 @@ from dancedata.ingest.source import (
     Source,
     StoredArray,
 )
-from dancedata.io.bvh_attrs import is_bvh_skeleton
 from dancedata.io.bvh_head import FPS_RANGE
 from dancedata.progress import progress
 from dancedata.store.command_result import CommandResult
 from dancedata.store.layout import StoreLayout
-from dancedata.store.reader import VersionReader
 from dancedata.store.writer import VersionWriter, base_fingerprint
 
 __all__ = ["COMMAND", "BvhIngestOptions", "BvhSource", "ingest_bvh"]
@@ -179,135 +184,6 @@ def _checked_inputs(
     return kept, keys
 
 
-@dataclass
-class _AppendedVersion:
-    """What the version appended to (``--append``) contributes."""
-
-    reader: VersionReader
-    attrs: dict[str, Any]
-    rows: list[dict[str, Any]]
-    music: list[dict[str, Any]]
-    splits: list[dict[str, Any]]
-
-
-def _appended_version(store: str | Path, layout: StoreLayout) -> _AppendedVersion:
-    if not layout.exists():
-        raise InputError("--append needs an existing store", store)
-    reader = VersionReader(store)
-    attrs = reader.group_attrs("motion")
-    if attrs.get("source") != SOURCE or not is_bvh_skeleton(attrs.get("skeleton")):
-        raise InputError(
-            f"--append adds to a BVH store, but version {reader.version} holds "
-            f"{attrs.get('source') or 'another kind of'} data; ingest without --append or into "
-            "another store",
-            store,
-        )
-    return _AppendedVersion(
-        reader=reader,
-        attrs=attrs,
-        rows=reader.table("sequences").to_pylist(),
-        music=reader.table("music").to_pylist() if reader.has_table("music") else [],
-        splits=reader.table("splits").to_pylist() if reader.has_table("splits") else [],
-    )
-
-
-def _already_appended(
-    parent: _AppendedVersion,
-    inputs: list[BvhInput],
-    checksums: InputChecksums,
-    config: dict[str, Any],
-) -> bool:
-    """The parent was made by this command with these settings and already holds every input
-    (same sequence id and content): appending them again has nothing to do."""
-    if parent.reader.manifest.get("command") != COMMAND:
-        return False
-    old = {k: v for k, v in parent.reader.manifest.get("config", {}).items() if k != "append"}
-    if old != {k: v for k, v in config.items() if k != "append"}:
-        return False
-    held = {r["seq_id"]: r for r in parent.rows}
-
-    def same(item: BvhInput) -> bool:
-        row = held.get(item.seq_id)
-        return (
-            row is not None
-            and row["sha256"] == checksums.sha(item.path)
-            and row["genre"] == item.genre
-            and (item.bpm is None or row["bpm"] == item.bpm)
-            and (row["music_id"] is None) == (item.music is None)
-        )
-
-    return all(same(item) for item in inputs)
-
-
-def _check_new_ids(parent: _AppendedVersion, inputs: list[BvhInput]) -> None:
-    present = {r["seq_id"] for r in parent.rows}
-    for item in inputs:
-        if item.seq_id in present:
-            raise InputError(
-                f"sequence {item.seq_id!r} is already in version {parent.reader.version}; "
-                "rename the file, or ingest without --append",
-                item.path,
-            )
-
-
-def _tracks(
-    inputs: list[BvhInput], checksums: InputChecksums, skips: SkipPolicy
-) -> tuple[list[BvhInput], dict[str, Any]]:
-    """Describe each music file once (tempo estimated when no bpm is given)."""
-    from dancedata.ingest.video_music import music_from_file
-
-    tracks: dict[str, Any] = {}
-    kept = []
-    paired = sum(item.music is not None for item in inputs)
-    for item in progress(inputs, "read music", total=paired, unit="file") if paired else inputs:
-        if item.music is not None and str(item.music) not in tracks:
-            try:
-                tracks[str(item.music)] = music_from_file(
-                    item.music, checksums.sha(item.music), item.bpm
-                )
-            except InputError as exc:
-                skips.fail_or_skip(exc, item.music)
-                continue
-        kept.append(item)
-    return kept, tracks
-
-
-# ----------------------------------------------------------------------------- tables
-
-
-def _music_table(
-    parent_music: list[dict[str, Any]], tracks: dict[str, Any], used: list[BvhInput], fps: float
-) -> tuple[list[dict[str, Any]], dict[str, dict[str, Any]]]:
-    """Parent rows (re-packed from 0) then one row per new track; rows keyed by file path."""
-    rows: list[dict[str, Any]] = []
-    by_path: dict[str, dict[str, Any]] = {}
-    start = 0
-    for old in parent_music:
-        row = dict(old)
-        n = int(row["frame_stop"]) - int(row["frame_start"])
-        row["frame_start"], row["frame_stop"] = start, start + n
-        start += n
-        rows.append(row)
-        by_path[str(row["path"])] = row
-    by_sha = {row["sha256"]: row for row in rows}
-    ids = {row["music_id"] for row in rows}
-    for item in used:
-        if item.music is None or str(item.music) in by_path:
-            continue
-        track = tracks[str(item.music)]
-        if track.sha256 in by_sha:  # the same audio under another path
-            by_path[str(item.music)] = by_sha[track.sha256]
-            continue
-        row = track.row(item.genre, start, fps)
-        if row["music_id"] in ids:
-            row["music_id"] = f"{track.music_id}-{track.sha256[:8]}"
-        ids.add(row["music_id"])
-        start = row["frame_stop"]
-        rows.append(row)
-        by_path[str(item.music)] = by_sha[track.sha256] = row
-    return rows, by_path
-
-
 # ----------------------------------------------------------------------------- the source
 
 
@@ -332,7 +208,7 @@ class BvhSource(Source):
         self.settings = options.settings()
         self.config = options.config()
         self.rig = BvhRig(options.up_axis, options.skeleton_atol_m)
-        self.parent: _AppendedVersion | None = None
+        self.parent: AppendedVersion | None = None
         self.tracks: dict[str, Any] = {}
 
     # -- before the version opens ----------------------------------------------------------
@@ -381,16 +257,16 @@ class BvhSource(Source):
         behind another writer appends to that writer's result."""
         if not self.options.append:
             return []
-        parent = self.parent = _appended_version(store, StoreLayout(store))
-        if _already_appended(parent, self.inputs, self.checksums, self.config):
+        parent = self.parent = read_appended_version(store, StoreLayout(store))
+        if already_appended(parent, self.inputs, self.checksums, self.config, COMMAND):
             return CommandResult(version=parent.reader.version, created=False)
-        _check_new_ids(parent, self.inputs)
+        check_new_ids(parent, self.inputs)
         self.based_on = parent.reader.version
         return [f"append-to={base_fingerprint(parent.reader.manifest)}"]
 
     def prepare(self, checksums: InputChecksums, skips: SkipPolicy) -> list[ReadTask]:
         """Describe the music (tempo); files whose music is unreadable are skipped or fail."""
-        self.inputs, self.tracks = _tracks(self.inputs, checksums, skips)
+        self.inputs, self.tracks = music_tracks(self.inputs, checksums, skips)
         self.by_path = {str(item.path): item for item in self.inputs}
         return self._tasks(self.inputs)
 
@@ -442,7 +318,7 @@ class BvhSource(Source):
     def music_table(self, records: list[SequenceRecord]) -> MusicTable:
         used = [r.item[0] for r in records]
         parent_music = self.parent.music if self.parent else []
-        rows, by_path = _music_table(parent_music, self.tracks, used, float(self.rig.fps or 0))
+        rows, by_path = music_table_rows(parent_music, self.tracks, used, float(self.rig.fps or 0))
         return MusicTable(rows, by_path)
 
     def tables(
