@@ -226,3 +226,22 @@ def test_remote_children_reference_the_parents_unchanged_files(stores):
     v2_record = load_record(remote.version_backend("v2"))["files"]
     chunks = [r for r in v2_record if r.startswith("data.zarr/") and "/c/" in r]
     assert chunks and all(r in v3_refs for r in chunks)
+
+
+def test_an_object_written_at_a_referenced_path_is_reported(stores):
+    """A file a version references (held by an older version) that appears in the version's own
+    prefix after the commit is not read, but validate must say so."""
+    from dancedata.store.integrity import check_record, load_record
+    from dancedata.store.references import REFERENCES_FILE, parse_references
+
+    fs = s3fs.S3FileSystem()
+    fs.invalidate_cache()
+    fs.copy(f"{BUCKET}/stores/demo", f"{BUCKET}/stores/shadowed", recursive=True)
+    prefix = f"{BUCKET}/stores/shadowed/versions/v3"
+    refs = parse_references(fs.cat_file(f"{prefix}/{REFERENCES_FILE}"), "v3")
+    rel = next(r for r in sorted(refs) if "/c/" in r)
+    fs.pipe_file(f"{prefix}/{rel}", b"\0" * 8)
+    version = StoreLayout(f"s3://{BUCKET}/stores/shadowed").version_backend("v3")
+    assert rel in load_record(version)["files"]
+    problems = check_record(version, deep=False)
+    assert len(problems) == 1 and rel in problems[0] and f"says {refs[rel]} holds it" in problems[0]

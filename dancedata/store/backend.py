@@ -144,6 +144,12 @@ class StoreBackend(ABC):
         """Changes whenever the bytes at ``key`` may have changed (inode, size and mtime; an
         ETag): a cache key for hashes and parsed files. None when absent or unknown."""
 
+    def shadowed(self) -> dict[str, str]:
+        """{key: holding version} of files stored here although this version's references
+        name another version as their holder (written after the commit); {} without
+        references (see :mod:`dancedata.store.references`)."""
+        return {}
+
     def links(self, key: str) -> list[str]:
         """Keys (relative to ``key``) of symbolic links below it; object stores have none."""
         return []

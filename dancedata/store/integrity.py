@@ -399,6 +399,11 @@ def check_record(
     problems += _manifest_problems(version, record)
     problems += _parent_problems(version, record)
     problems += _unrecorded_chunks(version, files)
+    problems += [
+        f"{describe_file(rel)} ({rel}): stored in this version although its references.json "
+        f"says {holder} holds it (written after commit; readers read {holder}'s)"
+        for rel, holder in sorted(version.shadowed().items())
+    ]
     present = data_file_sizes(version)
     for rel in sorted(set(present) - set(files)):
         problems.append(f"{describe_file(rel)} ({rel}): file not recorded at commit")

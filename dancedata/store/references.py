@@ -76,6 +76,10 @@ class ReferencedVersion(StoreBackend):
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__init__(state["base"], state["refs"])  # type: ignore[misc]
 
+    def shadowed(self) -> dict[str, str]:
+        stored = self.base.file_sizes("")
+        return {rel: holder for rel, holder in self.refs.items() if rel in stored}
+
     def _holder(self, key: str) -> tuple[StoreBackend, str]:
         version = self.refs.get(key)
         return (self.base.sibling(version), key) if version else (self.base, key)
@@ -186,11 +190,13 @@ class ReferencedVersion(StoreBackend):
 
     def zarr_store(self, key: str, *, read_only: bool = False) -> Any:
         prefix = key.rstrip("/") + "/"
-        redirects = {
-            k[len(prefix) :]: self.base.sibling(v).zarr_store(key, read_only=True)
-            for k, v in self.refs.items()
-            if k.startswith(prefix)
-        }
+        holders: dict[str, Any] = {}  # one zarr store per holding version
+        redirects = {}
+        for path, version in self.refs.items():
+            if path.startswith(prefix):
+                if version not in holders:
+                    holders[version] = self.base.sibling(version).zarr_store(key, read_only=True)
+                redirects[path[len(prefix) :]] = holders[version]
         store = self.base.zarr_store(key, read_only=True)
         return RedirectingStore(store, redirects) if redirects else store
 
