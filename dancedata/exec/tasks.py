@@ -39,11 +39,6 @@ class TaskReport:
     tasks: int = 0
     resumed: int = 0
 
-    @property
-    def units(self) -> int:
-        """Old name of :attr:`tasks` (featurize still reads it; manifests count ``units``)."""
-        return self.tasks
-
     def timing(self) -> dict[str, dict[str, float]]:
         """Per kind, the tasks run by this call (resumed ones excluded): how many, their wall
         seconds summed over workers, and their CPU seconds."""
