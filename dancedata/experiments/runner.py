@@ -39,6 +39,7 @@ from dancedata.experiments.bezier import BezierTrainMean, bezier_fit, bezier_rec
 from dancedata.experiments.config import ExperimentConfig, RowKey
 from dancedata.experiments.inbetween import Reconstruction, linear_slerp, segment_map
 from dancedata.experiments.metrics import fid, mse
+from dancedata.experiments.results_schema import results_table
 from dancedata.experiments.runner_data import (
     SplitData,
     load_split,
@@ -356,31 +357,6 @@ def _result_row(row: RowKey, n: int, result: dict[str, Any], config: ExperimentC
         "genres_excluded": ",".join(data.genres_excluded),
         "variant": json.dumps(variant, sort_keys=True, default=str),
     }
-
-
-def results_table(rows: list[dict[str, Any]]) -> Any:
-    """The long-format results table (spec §5.5) with its column types."""
-    import pyarrow as pa
-
-    schema = pa.schema(
-        [
-            ("run_id", pa.string()),
-            ("row_key", pa.string()),
-            ("n_keyframes", pa.int16()),
-            ("metric", pa.string()),
-            ("value", pa.float64()),
-            ("n_units", pa.int32()),
-            ("n_frames", pa.int32()),
-            ("split", pa.string()),
-            ("genres_excluded", pa.string()),
-            ("variant", pa.string()),
-            ("store_version", pa.string()),
-            ("dancedata_version", pa.string()),
-            ("created_at", pa.string()),
-        ]
-    )
-    columns = {f.name: [r.get(f.name) for r in rows] for f in schema}
-    return pa.table(columns, schema=schema)
 
 
 def write_results(out: RunOutput, out_dir: Path) -> Path:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -122,11 +123,16 @@ def _frames(seconds: float, sr: int) -> int:
     return int(math.ceil(max(seconds, 0.0) * sr))
 
 
-def _read_mono(handle, limit: int, native_sr: int, channels: int, name: Path) -> np.ndarray:  # noqa: ANN001
-    """Up to ``limit`` frames, block by block, each checked and mixed down to mono."""
+def checked_blocks(handle, limit: int, sr: int, name: Path) -> Iterator[tuple[int, np.ndarray]]:  # noqa: ANN001
+    """(first sample, block) for up to ``limit`` frames of an open ``soundfile.SoundFile``, read
+    :data:`BLOCK_FRAMES` at a time: (frames, channels) float32 blocks at ``sr`` Hz, every sample
+    checked (:func:`check_samples`) before the block is yielded.
+
+    A read error is one InputError naming the file and the sample (and time) it stopped after;
+    a header that promised more than the file holds ends the blocks early (the caller keeps what
+    is there). Nothing is held beyond the current block."""
     import soundfile as sf
 
-    mono = np.empty(limit, dtype=np.float32)
     done = 0
     while done < limit:
         try:
@@ -136,16 +142,24 @@ def _read_mono(handle, limit: int, native_sr: int, channels: int, name: Path) ->
         except (RuntimeError, sf.LibsndfileError) as exc:
             raise InputError(
                 f"cannot decode audio: damaged or truncated after sample {done} "
-                f"({done / native_sr:.3f} s): {' '.join(str(exc).split())}",
+                f"({done / sr:.3f} s): {' '.join(str(exc).split())}",
                 name,
             ) from None
         if block.shape[0] == 0:
             break  # the header promised more than the file holds: keep what is there
-        check_samples(block, done, native_sr, name)
-        k = block.shape[0]
+        check_samples(block, done, sr, name)
+        yield done, block
+        done += block.shape[0]
+
+
+def _read_mono(handle, limit: int, native_sr: int, channels: int, name: Path) -> np.ndarray:  # noqa: ANN001
+    """Up to ``limit`` frames, block by block (:func:`checked_blocks`), each mixed down to mono."""
+    mono = np.empty(limit, dtype=np.float32)
+    done = 0
+    for first, block in checked_blocks(handle, limit, native_sr, name):
+        done = first + block.shape[0]
         # as librosa.to_mono: the float32 mean over channels (a single channel as is)
-        mono[done : done + k] = block[:, 0] if channels == 1 else np.mean(block.T, axis=0)
-        done += k
+        mono[first:done] = block[:, 0] if channels == 1 else np.mean(block.T, axis=0)
     if done == 0:
         raise InputError("audio file holds no samples", name)
     return mono[:done]

@@ -19,7 +19,7 @@ from typing import BinaryIO
 import numpy as np
 
 from dancedata.errors import InputError
-from dancedata.io.audio_decode import BLOCK_FRAMES, check_samples
+from dancedata.io.audio_decode import check_samples, checked_blocks
 
 
 @dataclass(frozen=True)
@@ -68,22 +68,9 @@ def decode_native(
         limit = header if max_seconds is None else min(header, math.ceil(max(max_seconds, 0) * sr))
         out = np.empty((channels, limit), dtype=np.float32)
         done = 0
-        while done < limit:
-            try:
-                block = handle.read(
-                    frames=min(BLOCK_FRAMES, limit - done), dtype="float32", always_2d=True
-                )
-            except (RuntimeError, sf.LibsndfileError) as exc:
-                raise InputError(
-                    f"cannot decode audio: damaged or truncated after sample {done} "
-                    f"({done / sr:.3f} s): {' '.join(str(exc).split())}",
-                    name,
-                ) from None
-            if block.shape[0] == 0:
-                break  # the header promised more than the file holds: keep what is there
-            check_samples(block, done, sr, name)
-            out[:, done : done + block.shape[0]] = block.T
-            done += block.shape[0]
+        for first, block in checked_blocks(handle, limit, sr, name):
+            done = first + block.shape[0]
+            out[:, first:done] = block.T
     if done == 0:
         raise InputError("audio file holds no samples", name)
     return NativeAudio(np.ascontiguousarray(out[:, :done]), sr, header)

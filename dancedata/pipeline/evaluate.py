@@ -42,6 +42,7 @@ from dancedata.experiments.evaluate_inputs import (
     z_up_to_y_up,
 )
 from dancedata.experiments.metrics.beats import beat_frames
+from dancedata.experiments.results_schema import results_table
 from dancedata.io.generated_motion import (
     GENERATED_SUFFIXES,
     find_generated_file,
@@ -336,30 +337,10 @@ def _reference_units(
 
 
 def _write_record(out: Path, record: dict[str, Any], rows: list[dict[str, Any]]) -> None:
-    import pyarrow as pa
     import pyarrow.parquet as pq
 
     out.mkdir(parents=True, exist_ok=True)
-    schema = pa.schema(
-        [
-            ("run_id", pa.string()),
-            ("row_key", pa.string()),
-            ("n_keyframes", pa.int16()),
-            ("metric", pa.string()),
-            ("value", pa.float64()),
-            ("n_units", pa.int32()),
-            ("n_frames", pa.int32()),
-            ("split", pa.string()),
-            ("genres_excluded", pa.string()),
-            ("variant", pa.string()),
-            ("n_unscored", pa.int32()),
-            ("unscored", pa.string()),
-            ("store_version", pa.string()),
-            ("dancedata_version", pa.string()),
-            ("created_at", pa.string()),
-        ]
-    )
-    table = pa.Table.from_pylist(rows, schema=schema)
+    table = results_table(rows, unscored=True)
     tag = f".tmp-{os.getpid()}"
     pq_tmp, json_tmp = out / f"results.parquet{tag}", out / f"results.json{tag}"
     try:

@@ -33,11 +33,10 @@ from dancedata.experiments.keyframes import (
 )
 from dancedata.experiments.keyframes_dp import dp_keyframes_batch
 from dancedata.experiments.keyframes_peaks import DP, KEYFRAME_SOURCES, peak_keyframes_batch
+from dancedata.pipeline.version_step import DerivedVersion, derive_version
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
-from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
-from dancedata.store.writer import VersionWriter, already_done, hold_store_lock
 
 DATA_STAGES = ("ingest", "featurize", "segment")
 # Measures per DP batch: bounds memory to about batch × L² × 8 bytes × 3 (L = 180: 100 MB).
@@ -388,16 +387,14 @@ def keyframes(store: str | Path, options: KeyframesOptions) -> CommandResult:
     derived from ``options.version`` (default: the latest, as it is once the lock is held)."""
     # Parent, fingerprint and the "already done" check are read under the store lock, as in
     # segment: a run that waited behind another writer derives from that writer's result.
-    with hold_store_lock(store, wait=options.wait_for_lock) as lock:
-        return _keyframes_locked(store, options, lock)
+    with derive_version(store, "keyframes", options.version, options.wait_for_lock) as step:
+        return _keyframes_step(step, options)
 
 
-def _keyframes_locked(store: str | Path, options: KeyframesOptions, lock: Any) -> CommandResult:
+def _keyframes_step(step: DerivedVersion, options: KeyframesOptions) -> CommandResult:
     from dancedata.loader import DanceStore
 
-    layout = StoreLayout(store)
-    parent = layout.resolve(options.version)
-    reader = VersionReader(store, parent)
+    store, parent, reader = step.store, step.parent, step.reader
     stages = reader.manifest.get("stages") or {}
     data = {stage: stages.get(stage) for stage in DATA_STAGES}
     if data["ingest"] is None:
@@ -428,10 +425,10 @@ def _keyframes_locked(store: str | Path, options: KeyframesOptions, lock: Any) -
         "keyframes k ≥ 1 (from the DP's error table); NaN otherwise",
     }
     config = options.config(context)
-    fp = fingerprint("keyframes", config, [str(v) for v in data.values()], __version__)
-    existing = already_done(store, fp, reader.manifest, "keyframes")
-    if existing is not None:
-        return CommandResult(version=existing, created=False)
+    fp = step.fingerprint(config, [str(v) for v in data.values()])
+    done = step.already_done(fp)
+    if done is not None:
+        return done
 
     measures, sequences = _measure_set(reader, options)
     loader = DanceStore(store, parent)
@@ -477,18 +474,7 @@ def _keyframes_locked(store: str | Path, options: KeyframesOptions, lock: Any) -
     counts["rows"] = table.num_rows
     counts["units"] = 1
     counts["resumed_units"] = 0
-    with VersionWriter(
-        store,
-        command="keyframes",
-        config=config,
-        fingerprint=fp,
-        inputs=[{"path": parent, "bytes": 0, "sha256": reader.manifest["fingerprint"]}],
-        parent=parent,
-        wait_for_lock=options.wait_for_lock,
-        stage="keyframes",
-        parent_stages=reader.manifest.get("stages"),
-        lock=lock,
-    ) as version:
+    with step.writer(config, fp) as version:
         for (seq_id, _strategy), reason in sorted(skipped.items()):
             version.skip(seq_id, reason)
         version.write_table("keyframes", table)

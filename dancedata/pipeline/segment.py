@@ -6,21 +6,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dancedata._version import __version__
 from dancedata.compute.downbeat import method_config
 from dancedata.compute.measures import measure_grid
 from dancedata.errors import InputError, StoreError
-from dancedata.store.checksums import fingerprint
+from dancedata.pipeline.version_step import DerivedVersion, derive_version
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
-from dancedata.store.layout import StoreLayout, warn_once
-from dancedata.store.reader import VersionReader
-from dancedata.store.writer import (
-    VersionWriter,
-    already_done,
-    base_fingerprint,
-    hold_store_lock,
-)
+from dancedata.store.layout import warn_once
+from dancedata.store.writer import base_fingerprint
 
 
 @dataclass
@@ -114,21 +107,17 @@ def segment(store: str | Path, options: SegmentOptions) -> CommandResult:
     the latest version, as it is once this writer holds the store lock)."""
     if options.beats_per_measure < 1:
         raise InputError("--beats-per-measure must be at least 1")
-    # Parent, fingerprint and the "already done" check are read under the lock: a run that
-    # waited behind another writer derives from that writer's result (no lost update).
-    with hold_store_lock(store, wait=options.wait_for_lock) as lock:
-        return _segment_locked(store, options, lock)
+    with derive_version(store, "segment", options.version, options.wait_for_lock) as step:
+        return _segment_step(step, options)
 
 
-def _segment_locked(store: str | Path, options: SegmentOptions, lock: Any) -> CommandResult:
-    layout = StoreLayout(store)
-    parent = layout.resolve(options.version)
-    reader = VersionReader(store, parent)
+def _segment_step(step: DerivedVersion, options: SegmentOptions) -> CommandResult:
+    reader = step.reader
     config = options.config()
-    fp = fingerprint("segment", config, [base_fingerprint(reader.manifest)], __version__)
-    existing = already_done(store, fp, reader.manifest, "segment")
-    if existing is not None:
-        return CommandResult(version=existing, created=False)
+    fp = step.fingerprint(config, [base_fingerprint(reader.manifest)])
+    done = step.already_done(fp)
+    if done is not None:
+        return done
     sequences = reader.table("sequences").to_pylist()
     phases = tracks = None
     if options.phase_auto:
@@ -136,19 +125,8 @@ def _segment_locked(store: str | Path, options: SegmentOptions, lock: Any) -> Co
 
         phases, tracks = downbeat_phases(reader, sequences, options.beats_per_measure)
     rows = measure_rows(sequences, options, phases)
-    check_measures(sequences, rows, str(store))
-    with VersionWriter(
-        store,
-        command="segment",
-        config=config,
-        fingerprint=fp,
-        inputs=[{"path": parent, "bytes": 0, "sha256": reader.manifest["fingerprint"]}],
-        parent=parent,
-        wait_for_lock=options.wait_for_lock,
-        stage="segment",
-        parent_stages=reader.manifest.get("stages"),
-        lock=lock,
-    ) as version:
+    check_measures(sequences, rows, str(step.store))
+    with step.writer(config, fp) as version:
         version.write_table("measures", build_table("measures", rows))
         # One unit, committed atomically: segment is quick, so a killed run just starts over.
         counts = {
