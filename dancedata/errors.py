@@ -16,6 +16,11 @@ class DancedataError(Exception):
     def __str__(self) -> str:
         return f"{self.path}: {self.problem}" if self.path else self.problem
 
+    def __reduce__(self) -> tuple[type, tuple[str, str | None]]:
+        # An error raised in a worker process (process pool or Dask) comes back to the client
+        # pickled; rebuild it from (problem, path) so ``--json`` still names the file.
+        return (type(self), (self.problem, self.path))
+
 
 class InputError(DancedataError):
     """An input file is missing, malformed or unsafe."""

@@ -285,3 +285,18 @@ def test_a_failed_first_ingest_leaves_nothing_behind(raw, tmp_path):
     assert sorted(p.name for p in good.iterdir()) == listing
     assert StoreLayout(good).committed_versions() == ["v1"]
     assert run_cli("validate", str(good)).returncode == 0
+
+
+def test_errors_keep_their_file_through_pickle() -> None:
+    """An error raised in a worker process reaches the client pickled: it keeps its file and
+    problem (``--json`` reports ``file``), whatever the subclass."""
+    import pickle
+
+    from dancedata.errors import InputError, StoreError
+    from dancedata.exec.executors import ClusterError
+
+    for error in (InputError("bad header", "/data/a.bvh"), StoreError("locked", "s3://b/x"),
+                  ClusterError("no workers left")):
+        back = pickle.loads(pickle.dumps(error))
+        assert type(back) is type(error)
+        assert (back.problem, back.path, str(back)) == (error.problem, error.path, str(error))
