@@ -86,6 +86,13 @@ class SequenceReader:
                 f"no sequence {seq_id!r} in version {self.version}", self.path
             ) from None
 
+    def music_track(self, seq_id: str) -> dict[str, Any] | None:
+        """The music-table row of ``seq_id``'s track (``path``, ``frame_start``/``frame_stop``
+        in global ``audio/*`` rows, ...), a copy; None when the sequence names no music or its
+        ``music_id`` is not in this version's music table (or there is no music table)."""
+        track = self._music_rows.get(self.sequence(seq_id).get("music_id"))
+        return None if track is None else dict(track)
+
     def has_table(self, name: str) -> bool:
         """Whether this version has the parquet table ``name``."""
         return self._reader.has_table(name)

@@ -19,14 +19,13 @@ import numpy as np
 
 from dancedata.errors import DancedataError
 from dancedata.loader import DanceStore
-from dancedata.store.layout import TABLE_FILES
+from dancedata.sequence_reader import SequenceReader
 from dancedata.store.reader import VersionReader
 
 STEM_ORDER: tuple[str, ...] = ("drums", "bass", "vocals", "other")
 # Joints of the joint-angle panel when the skeleton has them (SMPL-24 names); otherwise the
 # joints whose angles vary most are drawn instead.
 DEFAULT_JOINTS: tuple[str, ...] = ("left_knee", "right_knee", "left_elbow", "right_elbow")
-KEYFRAMES_FILE = "keyframes.parquet"
 
 
 @dataclass(frozen=True)
@@ -127,20 +126,11 @@ def _decode_waveform(
     return Waveform(times=times, lo=lo, hi=hi, sr=sr, path=str(path))
 
 
-def read_keyframes(reader: VersionReader) -> list[dict[str, Any]] | None:
+def read_keyframes(reader: VersionReader | SequenceReader) -> list[dict[str, Any]] | None:
     """Rows of the version's ``keyframes`` table (EXPERIMENTS.md §2.5), or None without one."""
-    if "keyframes" in TABLE_FILES:
-        if not reader.has_table("keyframes"):
-            return None
-        return reader.table("keyframes").to_pylist()
-    if reader.remote:
+    if not reader.has_table("keyframes"):
         return None
-    path = reader.path / KEYFRAMES_FILE
-    if not path.is_file():
-        return None
-    import pyarrow.parquet as pq
-
-    return pq.read_table(path).to_pylist()
+    return reader.table("keyframes").to_pylist()
 
 
 def keyframe_tracks(rows: list[dict[str, Any]], seq_id: str) -> list[KeyframeTrack]:
@@ -178,7 +168,7 @@ def _joint_angles(
     store: DanceStore, seq_id: str, joints: tuple[str, ...], n_auto: int
 ) -> tuple[dict[str, np.ndarray], str]:
     euler = store.motion(seq_id, "euler")  # (F, J, 3) radians
-    skeleton = store._reader.group_attrs("motion").get("skeleton") or {}
+    skeleton = store.group_attrs("motion").get("skeleton") or {}
     names = list(skeleton.get("joints") or [f"joint{j}" for j in range(euler.shape[1])])
     chosen = [names.index(j) for j in joints if j in names]
     if not chosen:
@@ -204,7 +194,7 @@ def _interior_angles(
         if array not in names:
             continue
         attrs = dict(store.zarr(array).attrs)
-        skeleton = attrs.get("skeleton") or store._reader.group_attrs("motion").get("skeleton")
+        skeleton = attrs.get("skeleton") or store.group_attrs("motion").get("skeleton")
         if not skeleton or "parents" not in skeleton:
             continue
         triples = hinge_triples(skeleton["joints"], skeleton["parents"])
@@ -241,7 +231,7 @@ def gather(
         meta={k: row.get(k) for k in ("genre", "bpm", "dancer", "music_id", "source")},
     )
     names = set(ds.array_names())
-    track = ds._music_rows.get(row.get("music_id")) if data.audio_frames else None
+    track = ds.music_track(seq_id) if data.audio_frames else None
     if track is None:
         data.notes.append("no music for this sequence")
     else:
@@ -270,12 +260,12 @@ def gather(
         components = ds.zarr("audio/nmfd_drums").attrs.get("components")
         if components:
             data.nmfd_components = tuple(map(str, components))
-    if ds._reader.has_table("measures"):
+    if ds.has_table("measures"):
         rows = [r for r in ds.measures.to_pylist() if r["seq_id"] == seq_id]
         data.measure_bounds = measure_boundaries(rows)
     else:
         data.notes.append("no measures table (run `dancedata segment`)")
-    kf_rows = read_keyframes(ds._reader)
+    kf_rows = read_keyframes(ds)
     if kf_rows:
         data.keyframes = keyframe_tracks(kf_rows, seq_id)
     if "motion/euler" in names:

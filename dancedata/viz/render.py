@@ -176,13 +176,13 @@ def music_timing(store: DanceStore, seq_id: str) -> MusicTiming:
     """Measures (measures table) and tracked beats (``audio/beats``) of ``seq_id``, in sequence
     frames; empty parts where the store has none."""
     starts = stops = np.zeros(0, dtype=np.int64)
-    if store._reader.has_table("measures"):
+    if store.has_table("measures"):
         rows = [r for r in store.measures.to_pylist() if r["seq_id"] == seq_id]
         rows.sort(key=lambda r: r["frame_start"])
         starts = np.array([r["frame_start"] for r in rows], dtype=np.int64)
         stops = np.array([r["frame_stop"] for r in rows], dtype=np.int64)
     beats = np.zeros(0, dtype=np.int64)
-    if store._reader.has_array("audio/beats") and store.audio_frames(seq_id) > 0:
+    if store.has_array("audio/beats") and store.audio_frames(seq_id) > 0:
         beats = np.flatnonzero(store.audio(seq_id, "beats")).astype(np.int64)
     per = (store.manifest.get("config") or {}).get("beats_per_measure")
     per = int(per) if isinstance(per, int | float) and per > 0 else None
@@ -218,12 +218,7 @@ def music_samples(
     row = store.sequence(seq_id)
     if row.get("music_missing") or not row.get("music_id"):
         return None, "the sequence has no music"
-    tracks = (
-        {m["music_id"]: m for m in store.music.to_pylist()}
-        if store._reader.has_table("music")
-        else {}
-    )
-    track = tracks.get(row["music_id"])
+    track = store.music_track(seq_id)
     if track is None or not track.get("path"):
         return None, f"music {row['music_id']} is not in the music table"
     path = Path(track["path"])

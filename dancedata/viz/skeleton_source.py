@@ -111,7 +111,7 @@ def _track(
 
 
 def _choose(store: DanceStore, motion: dict[str, Any], smpl_model: str | Path | None) -> str:
-    has = store._reader.has_array
+    has = store.has_array
     skeleton = motion.get("skeleton") or {}
     if smpl_model and has("motion/axis_angle") and _is_smpl(skeleton):
         return "smpl"
@@ -146,10 +146,10 @@ def load_skeleton(
     if source not in SOURCES:
         raise InputError(f"source must be one of {', '.join(SOURCES)}, not {source!r}")
     row = store.sequence(seq_id)
-    motion = store._reader.group_attrs("motion")
+    motion = store.group_attrs("motion")
     if source == "auto":
         source = _choose(store, motion, smpl_model)
-    elif source in ("keypoints3d", "positions", "pose2d") and not store._reader.has_array(
+    elif source in ("keypoints3d", "positions", "pose2d") and not store.has_array(
         f"motion/{source}"
     ):
         raise StoreError(f"this store has no motion/{source}", store.path)
@@ -192,7 +192,7 @@ def load_skeleton(
     from dancedata.compute.rotations import axis_angle_to_rotmat
 
     joint_translations = None
-    if store._reader.has_array("motion/local_translations"):
+    if store.has_array("motion/local_translations"):
         joint_translations = _slice(store, seq_id, "local_translations")
     positions = forward_kinematics(
         skeleton["parents"],
