@@ -208,9 +208,9 @@ def main(argv: list[str]) -> int:
 
     # baseline on a sample of measures, scaled to all of them
     rng = np.random.default_rng(0)
-    reader_quat = ds._full("motion/quat")
-    trans = ds._full("motion/trans")
-    euler = ds._full("motion/euler")
+    reader_quat = ds.whole_array("motion/quat")
+    trans = ds.whole_array("motion/trans")
+    euler = ds.whole_array("motion/euler")
     x75 = np.concatenate([trans, euler.reshape(len(euler), -1)], axis=1).astype(np.float64)
     rows = ds.measures.to_pylist()
     sample = rng.choice(len(rows), size=min(args.baseline_measures, len(rows)), replace=False)

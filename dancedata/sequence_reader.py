@@ -182,8 +182,6 @@ class SequenceReader:
             self._arrays[name] = np.asarray(self._reader.array(name)[...])
         return self._arrays[name]
 
-    _full = whole_array  # the name tests, benches and plots have used
-
     def motion(self, seq_id: str, name: str) -> np.ndarray:
         """``motion/<name>`` frames of one sequence, e.g. ``motion(seq, "quat")``."""
         row = self.sequence(seq_id)
@@ -229,8 +227,6 @@ class SequenceReader:
         if music_id not in self._music_rows:
             return f"sequence {seq_id}: its music {music_id} is not in the music table"
         return f"sequence {seq_id} has no audio frames after its audio_offset"
-
-    _no_music_reason = no_music_reason
 
     def music_summary(self) -> str | None:
         """None when every sequence has music, else a phrase saying how many have none."""

@@ -460,8 +460,8 @@ def test_a_keyframe_run_feeds_the_in_betweeners(small_store: Path) -> None:
     measures = store.measures.to_pylist()
     assert run.keyframes.shape == (len(measures), 5)
     seg = run.segments()
-    quat, trans = store._full("motion/quat"), store._full("motion/trans")
-    euler = store._full("motion/euler")
+    quat, trans = store.whole_array("motion/quat"), store.whole_array("motion/trans")
+    euler = store.whole_array("motion/euler")
     rec = linear_slerp(quat, trans, seg, "XYZ", truth_euler=euler)
     truth = np.concatenate([trans, euler.reshape(len(euler), -1)], axis=1)[seg.frame]
     pooled = mse_euler75(truth, rec.euler75())
