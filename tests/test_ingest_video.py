@@ -148,7 +148,7 @@ def test_raga_1person_with_music_and_bpm(real_data: Path, tmp_path: Path) -> Non
     music = ds.music.to_pylist()[0]
     assert (music["sr"], music["n_samples"], music["bpm"]) == (22050, 6 * 22050, 120.0)
 
-    attrs = ds._reader.group_attrs("motion")
+    attrs = ds.group_attrs("motion")
     assert attrs["fps"] == 25.0 and attrs["skeleton"]["name"] == "openpose_body25"
     assert attrs["skeleton"]["joints"] == list(BODY_25.joints)
     kp = ds.motion("short_video", "pose2d")
@@ -395,7 +395,7 @@ def test_joints_csv_with_and_without_openpose(tmp_path: Path) -> None:
     known[4] = False
     np.testing.assert_allclose(pos[known], metres[known], atol=1e-6)
     assert np.isnan(pos[4]).all() and (pmask[4] == 0).all() and (pmask[known] == 1).all()
-    attrs = ds._reader.group_attrs("motion")
+    attrs = ds.group_attrs("motion")
     assert attrs["skeleton"]["name"] == "openpose_body25"
     assert ds.zarr("motion/positions").attrs["units"] == "m"
     assert ds.motion("clip", "pose2d").shape == (n, 25, 3)
@@ -409,7 +409,7 @@ def test_joints_csv_with_and_without_openpose(tmp_path: Path) -> None:
     ingest_video(store2, [video], options(joints_csv=plain, skeleton="coco18"))
     ds2 = dancedata.open_store(store2)
     assert ds2.array_names() == ["motion/positions", "motion/positions_mask"]
-    assert ds2._reader.group_attrs("motion")["skeleton"]["joints"] == list(COCO_18.joints)
+    assert ds2.group_attrs("motion")["skeleton"]["joints"] == list(COCO_18.joints)
     np.testing.assert_allclose(ds2.motion("clip", "positions"), coco, atol=1e-6)
     with pytest.raises(InputError, match="--skeleton"):
         ingest_video(tmp_path / "store3", [video], options(joints_csv=plain))
@@ -537,7 +537,7 @@ def test_chain_ingest_featurize_segment_validate_loader(tmp_path: Path) -> None:
     assert kp.shape == (120, 25, 3)
     assert ds.audio_frames("clip") == 120
     # Audio runs at the motion rate (sr = 30 × 512): clicks every 0.5 s peak every 15 frames.
-    assert ds._reader.group_attrs("audio")["sr"] == 15360
+    assert ds.group_attrs("audio")["sr"] == 15360
     env = ds.audio("clip", "onset_env")
     peaks = [
         k

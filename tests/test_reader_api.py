@@ -17,10 +17,7 @@ READER_FILES = ("dancedata/sequence_reader.py", "dancedata/loader.py", "dancedat
 CHECKED_DIRS = ("dancedata", "cli", "bench", "examples")
 # (file, expression) still reaching into the reader, each with who removes it. May only shrink:
 # delete the line when the access goes (a stale line fails the test).
-KNOWN_PRIVATE_ACCESSES = {
-    # L1 (pipeline/evaluate.py): `store._reader.has_table("measures")` -> `store.has_table(...)`
-    ("dancedata/pipeline/evaluate.py", "store._reader"),
-}
+KNOWN_PRIVATE_ACCESSES: set[tuple[str, str]] = set()
 
 
 def _private_names() -> set[str]:

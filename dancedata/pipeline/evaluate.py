@@ -431,7 +431,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         }
 
     measures: dict[str, list[tuple[int, int]]] | None = None
-    if store._reader.has_table("measures"):
+    if store.has_table("measures"):
         measures = {}
         for m in store.measures.select(["seq_id", "frame_start", "frame_stop"]).to_pylist():
             measures.setdefault(m["seq_id"], []).append((m["frame_start"], m["frame_stop"]))
