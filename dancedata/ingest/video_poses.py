@@ -5,7 +5,7 @@ OpenCV), or with ``frame_times="decoded"`` at the presentation time OpenCV decod
 i (variable-frame-rate video; costs a full decode); stored frame k sits at ``k / fps`` with
 ``fps`` the target rate (default the video's).
 Values are linearly interpolated by timestamp, confidences taken from the nearest frame
-(:mod:`dancedata.compute.timebase`).
+(:mod:`dancedata.compute.resample`).
 
 Without a video (``inputs.has_video`` False) the pose files are the clock
 (:func:`pose_clock`): ``fps`` must be given, pose frame i sits at ``i / fps`` and the frame count
@@ -29,8 +29,7 @@ from typing import Any, Literal
 import numpy as np
 
 from dancedata.compute.pose_tracking import fill_gaps, fill_tracked_gaps, track_openpose
-from dancedata.compute.resample import ResampledPoses as Resampled
-from dancedata.compute.resample import check_frame_count, resample_by_time
+from dancedata.compute.resample import ResampledPoses, check_frame_count, resample_by_time
 from dancedata.errors import InputError
 from dancedata.ingest.video_inputs import VideoInputs
 from dancedata.io.joints_csv import read_joints_csv
@@ -163,7 +162,7 @@ def _resample(
     target_times: np.ndarray,
     hold_until: float,
     conf: np.ndarray | None = None,
-) -> tuple[Resampled, np.ndarray]:
+) -> tuple[ResampledPoses, np.ndarray]:
     """Resample values and carry the filled flag: a target value is filled when a filled
     source frame contributed to it."""
     out = resample_by_time(values, mask, source_times, target_times, conf, hold_until)
