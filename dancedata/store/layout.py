@@ -395,9 +395,6 @@ class StoreLayout:
     def read_bytes(self, version: str, rel: str) -> bytes:
         return self.version_backend(version).read_bytes(rel)
 
-    def zarr_location(self, version: str) -> str:
-        return str(self.backend.where(f"{self.version_key(version)}/{ZARR_DIR}"))
-
     def read_manifest(self, version: str) -> dict[str, Any]:
         """The version's manifest.json, checked (:func:`parse_manifest`); StoreError naming the
         file when it is missing, unreadable or not a usable manifest."""
