@@ -88,7 +88,9 @@ def families(
         pass
     out["stems_offline"] = lambda y: stems.separate(y, SR, backend="offline")
     if umx_dir is not None:
-        out["stems_openunmix"] = lambda y: stems.separate(
+        from dancedata.pipeline import stem_separation
+
+        out["stems_openunmix"] = lambda y: stem_separation.separate(
             y, SR, backend="openunmix", weights_dir=umx_dir
         )
     prepared = {clip.size: stems.separate(clip, SR) for clip in clips}

@@ -258,7 +258,7 @@ def test_openunmix_family_end_to_end(raw, tmp_path, monkeypatch) -> None:
         # stems reach the feature rate afterwards; the file is read here by soundfile directly.
         import soundfile as sf
 
-        from dancedata.compute.stems.openunmix import separate_channels
+        from dancedata.pipeline.stem_separation import separate_channels
 
         native, native_sr = sf.read(music["path"], dtype="float32", always_2d=True)
         stems, _ = separate_channels(

@@ -14,13 +14,13 @@ import sys
 import numpy as np
 import pytest
 
-from dancedata.compute.stems import offline as stems_offline
 from dancedata.compute.stems import (
     STEM_BACKENDS,
     STEM_NAMES,
     backend_config,
     separate,
 )
+from dancedata.compute.stems import offline as stems_offline
 from dancedata.errors import InputError
 
 SR = 30720

@@ -16,9 +16,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from dancedata.compute.stems import STEM_NAMES
 from dancedata.compute.stems import openunmix as umx
-from dancedata.compute.stems import STEM_NAMES, separate
 from dancedata.errors import DancedataError, InputError
+from dancedata.io import openunmix_model as umxio
+from dancedata.io import openunmix_weights as umxw
+from dancedata.pipeline.stem_separation import separate
 from tests.helpers import importorskip_unless_ci
 
 torch = importorskip_unless_ci("torch")
@@ -43,7 +46,7 @@ def _save_models(folder: Path, names: dict[str, str], scale: dict[str, float]) -
 @pytest.fixture(scope="module")
 def weights_dir(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("umx_weights")
-    _save_models(root / "umxhq", umx.MODELS["umxhq"]["files"], SCALE)
+    _save_models(root / "umxhq", umxw.MODELS["umxhq"]["files"], SCALE)
     return root
 
 
@@ -104,23 +107,23 @@ def test_very_short_input_still_separates(weights_dir) -> None:
 
 def test_flat_and_per_stem_file_layouts_are_found(tmp_path) -> None:
     flat = tmp_path / "flat"
-    _save_models(flat, umx.MODELS["umxl"]["files"], SCALE)
-    assert umx.find_weights("umxl", flat) == {
-        stem: flat / umx.MODELS["umxl"]["files"][stem] for stem in STEM_NAMES
+    _save_models(flat, umxw.MODELS["umxl"]["files"], SCALE)
+    assert umxw.find_weights("umxl", flat) == {
+        stem: flat / umxw.MODELS["umxl"]["files"][stem] for stem in STEM_NAMES
     }
     named = tmp_path / "named"
     _save_models(named / "umxhq", {stem: f"{stem}.pth" for stem in STEM_NAMES}, SCALE)
-    found = umx.find_weights("umxhq", named)
+    found = umxw.find_weights("umxhq", named)
     assert found["vocals"] == named / "umxhq" / "vocals.pth"
 
 
 def test_torch_hub_cache_is_searched(tmp_path, monkeypatch) -> None:
     monkeypatch.setenv("TORCH_HOME", str(tmp_path))
     checkpoints = tmp_path / "hub" / "checkpoints"
-    _save_models(checkpoints, umx.MODELS["umxhq"]["files"], SCALE)
-    assert umx.hub_checkpoint_dir() == checkpoints
-    found = umx.find_weights("umxhq", None)
-    assert found["bass"] == checkpoints / umx.MODELS["umxhq"]["files"]["bass"]
+    _save_models(checkpoints, umxw.MODELS["umxhq"]["files"], SCALE)
+    assert umxw.hub_checkpoint_dir() == checkpoints
+    found = umxw.find_weights("umxhq", None)
+    assert found["bass"] == checkpoints / umxw.MODELS["umxhq"]["files"]["bass"]
 
 
 def test_missing_weights_name_every_file_url_and_folder(tmp_path, monkeypatch) -> None:
@@ -131,7 +134,7 @@ def test_missing_weights_name_every_file_url_and_folder(tmp_path, monkeypatch) -
         separate(np.zeros(1000), SR, backend="openunmix", weights_dir=tmp_path / "w")
     text = str(err.value)
     listed = text.split("missing: ")[1].split(". Nothing")[0].split(", ")
-    files = umx.MODELS["umxhq"]["files"]
+    files = umxw.MODELS["umxhq"]["files"]
     assert sorted(listed) == sorted(files[stem] for stem in ("bass", "other", "vocals"))
     assert "https://zenodo.org/records/3370489/files/" in text
     assert str(tmp_path / "w" / "umxhq") in text
@@ -140,15 +143,15 @@ def test_missing_weights_name_every_file_url_and_folder(tmp_path, monkeypatch) -
 
 def test_unknown_model_missing_folder_and_bad_weight_file(tmp_path) -> None:
     with pytest.raises(InputError, match="unknown OpenUnmix model"):
-        umx.find_weights("umx-huge", tmp_path)
+        umxw.find_weights("umx-huge", tmp_path)
     with pytest.raises(InputError, match="folder does not exist"):
-        umx.find_weights("umxhq", tmp_path / "nowhere")
+        umxw.find_weights("umxhq", tmp_path / "nowhere")
     folder = tmp_path / "umxhq"
-    _save_models(folder, umx.MODELS["umxhq"]["files"], SCALE)
-    torch.save({"just": torch.zeros(3)}, folder / umx.MODELS["umxhq"]["files"]["other"])
+    _save_models(folder, umxw.MODELS["umxhq"]["files"], SCALE)
+    torch.save({"just": torch.zeros(3)}, folder / umxw.MODELS["umxhq"]["files"]["other"])
     with pytest.raises(InputError, match="not an OpenUnmix state dict") as err:
-        umx.load_separator("umxhq", tmp_path)
-    assert err.value.path.endswith(umx.MODELS["umxhq"]["files"]["other"])
+        umxio.load_separator("umxhq", tmp_path)
+    assert err.value.path.endswith(umxw.MODELS["umxhq"]["files"]["other"])
 
 
 def test_missing_extra_is_one_clear_error(monkeypatch) -> None:
@@ -156,7 +159,7 @@ def test_missing_extra_is_one_clear_error(monkeypatch) -> None:
 
     monkeypatch.setitem(sys.modules, "openunmix.model", None)
     with pytest.raises(DancedataError, match=r"dancedata\[stems\]"):
-        umx.hub_checkpoint_dir()
+        umxw.hub_checkpoint_dir()
 
 
 @settings(max_examples=200, deadline=None)
@@ -184,7 +187,7 @@ def test_non_finite_em_step_falls_back_to_ratio_masks(tmp_path) -> None:
     """Duplicated-mono input with channel-symmetric estimates makes the EM step's covariances
     singular; where that gives inf/NaN the chunk is redone without EM, with a warning."""
     scale = {**SCALE, "drums": 0.9}
-    _save_models(tmp_path / "umxhq", umx.MODELS["umxhq"]["files"], scale)
+    _save_models(tmp_path / "umxhq", umxw.MODELS["umxhq"]["files"], scale)
     t = np.arange(int(1.5 * SR)) / SR
     rng = np.random.default_rng(4)
     y = (0.5 * np.sin(2 * np.pi * 60 * t) + 0.3 * rng.standard_normal(t.size)).astype(np.float32)
@@ -195,3 +198,21 @@ def test_non_finite_em_step_falls_back_to_ratio_masks(tmp_path) -> None:
     for name in STEM_NAMES:
         assert np.all(np.isfinite(stems[name]))
         np.testing.assert_array_equal(stems[name], plain[name])
+
+
+def test_compute_runs_a_separator_loaded_by_io_once(weights_dir) -> None:
+    """compute does no IO: the dispatcher takes a separator loaded by io (cached per process per
+    weight files and settings) and refuses the options that would load one."""
+    from dancedata.compute import stems
+
+    first = umxio.load_separator("umxhq", weights_dir, niter=0)
+    assert umxio.load_separator("umxhq", weights_dir, niter=0) is first
+    y = _music(2.0)
+    direct = stems.separate(y, SR, backend="openunmix", separator=first)
+    loaded = separate(y, SR, backend="openunmix", weights_dir=weights_dir, niter=0)
+    for name in STEM_NAMES:
+        np.testing.assert_array_equal(direct[name], loaded[name])
+    with pytest.raises(InputError, match=r"loaded separator.*\(not niter, weights_dir\)"):
+        stems.separate(y, SR, backend="openunmix", weights_dir=weights_dir, niter=0)
+    with pytest.raises(InputError, match="takes no separator"):
+        stems.separate(y, SR, backend="offline", separator=first)

@@ -19,10 +19,13 @@ import soundfile as sf
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dancedata.compute.stems import openunmix as umx
 from dancedata.compute.stem_features import all_stem_features
 from dancedata.compute.stems import STEM_NAMES
+from dancedata.compute.stems import openunmix as umx
 from dancedata.errors import InputError
+from dancedata.io import openunmix_model as umxio
+from dancedata.io import openunmix_weights as umxw
+from dancedata.pipeline import stem_separation
 from tests.helpers import importorskip_unless_ci
 
 torch = importorskip_unless_ci("torch")
@@ -135,8 +138,8 @@ def old_path(audio: np.ndarray, folder: Path) -> dict[str, np.ndarray]:
     import librosa
 
     mono = librosa.resample(audio.mean(axis=0), orig_sr=FILE_SR, target_sr=FEATURE_SR)
-    return umx.separate(
-        mono, FEATURE_SR, weights_dir=folder, chunk_seconds=30.0, overlap_seconds=1.0
+    return stem_separation.separate(
+        mono, FEATURE_SR, "openunmix", weights_dir=folder, chunk_seconds=30.0, overlap_seconds=1.0
     )
 
 
@@ -152,9 +155,9 @@ def short_track(tmp_path_factory) -> tuple[Path, np.ndarray]:
 
 
 def test_model_folder_is_read_with_its_own_settings(folder) -> None:
-    files = umx.find_weights("umxhq", folder)  # the model name does not matter for a folder
+    files = umxw.find_weights("umxhq", folder)  # the model name does not matter for a folder
     assert files == {stem: folder / f"{stem}.pth" for stem in STEM_NAMES}
-    separator = umx.load_separator(weights_dir=folder)
+    separator = umxio.load_separator(weights_dir=folder)
     assert umx.separator_settings(separator) == {
         "sample_rate": 44100.0,
         "n_fft": NFFT,
@@ -168,20 +171,20 @@ def test_model_folder_is_read_with_its_own_settings(folder) -> None:
             (folder / f"{stem}.pth").read_bytes()
         )
     (folder.parent / "odd" / "separator.json").write_text(json.dumps({**conf, "nhop": 512}))
-    odd = umx.load_separator(weights_dir=folder.parent / "odd")
+    odd = umxio.load_separator(weights_dir=folder.parent / "odd")
     assert umx.separator_settings(odd)["n_hop"] == 512
     (folder.parent / "odd" / "separator.json").write_text(json.dumps({**conf, "nfft": 2048}))
     with pytest.raises(InputError, match="separator.json says nfft 2048"):
-        umx.load_separator(weights_dir=folder.parent / "odd")
+        umxio.load_separator(weights_dir=folder.parent / "odd")
     (folder.parent / "odd" / "separator.json").write_text("{not json")
     with pytest.raises(InputError, match="cannot read OpenUnmix separator settings"):
-        umx.find_weights("umxhq", folder.parent / "odd") and umx.load_separator(
+        umxw.find_weights("umxhq", folder.parent / "odd") and umxio.load_separator(
             weights_dir=folder.parent / "odd"
         )
     (folder.parent / "odd" / "separator.json").write_text(json.dumps(conf))
     (folder.parent / "odd" / "bass-0123abcd.pth").unlink()
     with pytest.raises(InputError, match="lacks bass.pth"):
-        umx.find_weights("umxhq", folder.parent / "odd")
+        umxw.find_weights("umxhq", folder.parent / "odd")
 
 
 @pytest.mark.parametrize("channels", [2, 1])
@@ -193,14 +196,14 @@ def test_glue_equals_openunmix_on_the_same_file(folder, short_track, tmp_path, c
         audio = audio[:1]
         path = write_track(tmp_path / "mono.wav", audio)
     reference = openunmix_reference(folder, path)
-    ours, plan = umx.separate_channels(audio, FILE_SR, weights_dir=folder)
+    ours, plan = stem_separation.separate_channels(audio, FILE_SR, weights_dir=folder)
     assert plan["method"] == "whole_track"
     assert (plan["separation_sr"], plan["separation_channels"]) == (44100.0, 2)
     assert plan["input_channels"] == channels
     for stem in STEM_NAMES:
         expected = reference[stem].mean(axis=0)
         assert np.max(np.abs(ours[stem] - expected)) <= 6e-7 * max(1.0, np.max(np.abs(expected)))
-    at_feature_rate, _ = umx.separate_channels(
+    at_feature_rate, _ = stem_separation.separate_channels(
         audio, FILE_SR, out_sr=FEATURE_SR, weights_dir=folder
     )
     expected_fr = to_feature_rate(reference)
@@ -211,14 +214,14 @@ def test_glue_equals_openunmix_on_the_same_file(folder, short_track, tmp_path, c
 
 def test_content_above_15k_and_stereo_image_reach_the_stems(folder, short_track) -> None:
     path, audio = short_track
-    ours, _ = umx.separate_channels(audio, FILE_SR, weights_dir=folder)
+    ours, _ = stem_separation.separate_channels(audio, FILE_SR, weights_dir=folder)
     reference = openunmix_reference(folder, path)
     mix_high = sum(_band_power(ours[s], 15360.0) for s in STEM_NAMES)
     assert mix_high > 0.01 * _band_power(audio.mean(axis=0), 0.0)  # the 17 kHz tone is there
     # the old path (mono mix at 30.72 kHz) loses it and the stereo image: its features differ
     before = feature_differences(old_path(audio, folder), to_feature_rate(reference))
     after = feature_differences(
-        umx.separate_channels(audio, FILE_SR, out_sr=FEATURE_SR, weights_dir=folder)[0],
+        stem_separation.separate_channels(audio, FILE_SR, out_sr=FEATURE_SR, weights_dir=folder)[0],
         to_feature_rate(reference),
     )
     print("onset %, peaks moved / peaks — before:", before, "after:", after)
@@ -238,13 +241,15 @@ def test_long_track_whole_and_overlap_add(folder, tmp_path) -> None:
     audio = stereo_track(41.0, seed=2)
     path = write_track(tmp_path / "long.wav", audio)
     whole = {k: v.mean(axis=0) for k, v in openunmix_reference(folder, path).items()}
-    ours, plan = umx.separate_channels(audio, FILE_SR, weights_dir=folder)
+    ours, plan = stem_separation.separate_channels(audio, FILE_SR, weights_dir=folder)
     assert plan["method"] == "whole_track"
-    chunked_30, old_plan = umx.separate_channels(
+    chunked_30, old_plan = stem_separation.separate_channels(
         audio, FILE_SR, weights_dir=folder, chunk_seconds=30.0, overlap_seconds=1.0
     )
     assert old_plan["method"] == "overlap_add_crossfade"
-    small, small_plan = umx.separate_channels(audio, FILE_SR, weights_dir=folder, memory_mb=520.0)
+    small, small_plan = stem_separation.separate_channels(
+        audio, FILE_SR, weights_dir=folder, memory_mb=520.0
+    )
     assert small_plan["method"] == "overlap_add_crossfade"
     snr = {
         name: {stem: snr_db(result[stem], whole[stem]) for stem in STEM_NAMES}

@@ -18,7 +18,8 @@ An **OpenUnmix model folder** as ``openunmix`` writes and reads it (``separator.
 ``<target>-<hash>.pth``) is recognised by its ``separator.json`` (:func:`is_model_folder`,
 :func:`read_separator_json`) and its files found whatever the model name says.
 
-The network is built from these state dicts by :mod:`dancedata.compute.stems.openunmix`.
+The network is built from these state dicts by :mod:`dancedata.io.openunmix_model` and run by
+:mod:`dancedata.compute.stems.openunmix`.
 torch is imported lazily (the optional extra ``dancedata[stems]``).
 """
 

@@ -95,7 +95,7 @@ def stem_backend_config(settings: AudioSettings) -> dict[str, Any]:
 
     config = backend_config(settings.stems, **separation_options(settings))
     if settings.stems == "openunmix":
-        from dancedata.compute.stems import openunmix as umx
+        from dancedata.io import openunmix_weights as umx
 
         config.pop("weights_dir", None)
         config["weights"] = weights_checksums(settings.stems_model, settings.stems_weights)
@@ -127,7 +127,7 @@ def openunmix_stems(track: TrackAudio, settings: AudioSettings) -> dict[str, np.
     file's rate (resampled to the model's 44.1 kHz only when it differs), then per stem the
     channel mean resampled to the feature rate with the featurize resampler (``cfg.res_type``,
     as the mix) and fitted to the mix's length. The span decoded is the mix's (``span_s``)."""
-    from dancedata.compute.stems.openunmix import separate_channels
+    from dancedata.pipeline.stem_separation import separate_channels
 
     native = decode_native_checked(track.path, track.sha256, track.span_s)
     stems, plan = separate_channels(

@@ -13,8 +13,9 @@ Backends (:data:`STEM_BACKENDS`):
 ``openunmix``
     The OpenUnmix network (Stöter et al. 2019), pretrained ``umxhq`` or ``umxl`` weights read from a
     local folder or the torch hub cache. Needs the optional extra ``dancedata[stems]``; see
-    :mod:`dancedata.compute.stems.openunmix`;
-    the weight files are found and read by :mod:`dancedata.io.openunmix_weights`.
+    :mod:`dancedata.compute.stems.openunmix`. The separator is loaded (weights found, read and
+    built into the network) by :mod:`dancedata.io.openunmix_model` and passed to
+    :func:`separate` as ``separator=``; :mod:`dancedata.pipeline.stem_separation` does both.
 
 The backends are modules of this package; what they share (:data:`STEM_NAMES`, :func:`check_audio`,
 :func:`to_mono`) is in :mod:`dancedata.compute.stems.base` below them, so no backend imports this
@@ -74,16 +75,38 @@ def backend_config(backend: str = DEFAULT_BACKEND, **options: Any) -> dict[str, 
 
 
 def separate(
-    y: np.ndarray, sr: float, backend: str = DEFAULT_BACKEND, **options: Any
+    y: np.ndarray,
+    sr: float,
+    backend: str = DEFAULT_BACKEND,
+    *,
+    separator: Any = None,
+    **options: Any,
 ) -> dict[str, np.ndarray]:
     """Split a waveform at ``sr`` Hz into {drums, bass, vocals, other}.
 
     ``y`` is (samples,) or (channels, samples). Each stem is mono float32 with ``y``'s length and
     sample rate. ``options`` go to the backend (see :func:`backend_config` for the names).
+    ``openunmix`` needs ``separator``, loaded with
+    :func:`dancedata.io.openunmix_model.load_separator`; the options that load it
+    (``openunmix.LOAD_OPTIONS``: model, weights folder, device, niter, Wiener window) are not
+    taken here, only its run options (chunking, memory limit).
     """
     config = backend_config(backend, **options)
     audio = check_audio(y, sr)
     module = _backend_module(backend)
     config.pop("backend")
+    if backend == "openunmix":
+        given = sorted(set(options) & set(module.LOAD_OPTIONS))
+        if separator is None or given:
+            raise InputError(
+                "stem backend 'openunmix' separates with a loaded separator: load it with "
+                "dancedata.io.openunmix_model.load_separator and pass separator="
+                + (f" (not {', '.join(given)})" if given else "")
+            )
+        for name in module.LOAD_OPTIONS:
+            config.pop(name)
+        config["separator"] = separator
+    elif separator is not None:
+        raise InputError(f"stem backend {backend!r} takes no separator")
     stems: Mapping[str, np.ndarray] = module.separate(audio, float(sr), **config)
     return {name: np.asarray(stems[name], dtype=np.float32) for name in STEM_NAMES}

@@ -1,17 +1,16 @@
-"""OpenUnmix stem separation (Stöter, Uhlich, Liutkus & Mitsufuji 2019) from local weights.
+"""OpenUnmix stem separation (Stöter, Uhlich, Liutkus & Mitsufuji 2019) by a loaded separator.
 
 Needs the optional extra ``dancedata[stems]`` (torch, torchaudio, openunmix); everything here
 imports them lazily, so ``import dancedata`` never loads torch. The network architecture and the
 multichannel Wiener filter are those of the ``openunmix`` package (``openunmix.model.OpenUnmix``
-and ``Separator``); this module builds the models from their state dicts and runs them in chunks.
+and ``Separator``); this module runs a loaded ``Separator`` over whole tracks or chunks.
 
-The weight files are found and read by :mod:`dancedata.io.openunmix_weights` (never downloaded;
-``weights_dir``, then the torch hub cache; :data:`MODELS`, :func:`find_weights` and
-:func:`hub_checkpoint_dir` are re-exported here for callers). The architecture (hidden size,
-layers, bins, channels) is read from the state dict, so any OpenUnmix-shaped weights load. From
-an OpenUnmix model folder (one with ``separator.json``) the separator runs with that file's
-settings, whatever ``model`` says; without one, the published models' settings apply (44.1 kHz,
-n_fft from the weights, hop n_fft / 4).
+The separator is loaded from local weight files by :mod:`dancedata.io.openunmix_model`
+(:func:`~dancedata.io.openunmix_model.load_separator`, cached per weight files; the files are
+found by :mod:`dancedata.io.openunmix_weights`, never downloaded); the functions here take the
+loaded separator and run it. The settings that choose and load it are :data:`LOAD_OPTIONS`; the
+others of :data:`DEFAULTS` say how it is run. The Wiener window length and the rate, n_fft, hop
+and channels are read from the loaded separator (:func:`separator_settings`).
 
 What the model sees (:func:`separate_channels`): the input's own channels at the model rate,
 as ``openunmix.utils.preprocess`` feeds them (mono duplicated, only the first two of more;
@@ -36,22 +35,11 @@ for non-commercial use only (CC BY-NC-SA 4.0).
 
 from __future__ import annotations
 
-import functools
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from dancedata.errors import InputError
-from dancedata.io.openunmix_weights import (
-    MODELS,  # noqa: F401 - re-exported for callers
-    find_weights,
-    hub_checkpoint_dir,  # noqa: F401 - re-exported for callers
-    import_torch,
-    is_model_folder,
-    read_separator_json,
-    read_state_dict,
-)
 
 MODEL_SAMPLE_RATE = 44100
 
@@ -65,6 +53,9 @@ DEFAULTS: dict[str, Any] = {
     "overlap_seconds": 4.0,
     "memory_mb": 4096.0,
 }
+# The DEFAULTS that choose and load the separator (dancedata.io.openunmix_model.load_separator's
+# arguments); the others are run options of separate_channels.
+LOAD_OPTIONS: tuple[str, ...] = ("model", "weights_dir", "device", "niter", "wiener_win_len")
 # Resampler from a file's rate to the model's (44.1 kHz) when they differ.
 INPUT_RESAMPLER = "soxr_hq"
 # Peak MB per complex STFT value of the mix (bins × frames × channels) of one Separator pass with
@@ -73,96 +64,6 @@ INPUT_RESAMPLER = "soxr_hq"
 # stereo 44.1 kHz, i.e. 25.9 MB/s = 1.47e-4 MB per value and 75 MB fixed (rounded up below).
 MB_PER_STFT_VALUE = 1.5e-4
 FIXED_MB = 100.0
-
-
-def _build_target(path: Path) -> Any:
-    """One OpenUnmix target model, its shape read from the state dict at ``path``."""
-    from openunmix.model import OpenUnmix
-
-    state = read_state_dict(path)
-    max_bin = int(state["input_mean"].shape[0])
-    nb_bins = int(state["output_mean"].shape[0])
-    hidden, fc1_in = (int(v) for v in state["fc1.weight"].shape)
-    n_layers = sum(1 for key in state if key.startswith("lstm.weight_ih_l") and "_rev" not in key)
-    target = OpenUnmix(
-        nb_bins=nb_bins,
-        nb_channels=fc1_in // max_bin,
-        hidden_size=hidden,
-        nb_layers=n_layers,
-        unidirectional="lstm.weight_ih_l0_reverse" not in state,
-        max_bin=max_bin,
-    )
-    result = target.load_state_dict(state, strict=False)
-    if result.missing_keys:
-        raise InputError(f"OpenUnmix weights lack {', '.join(result.missing_keys[:5])}", path)
-    return target
-
-
-@functools.lru_cache(maxsize=2)
-def _cached_separator(
-    paths: tuple[tuple[str, str, float], ...],
-    device: str,
-    niter: int,
-    wiener_win_len: int | None,
-    stft: tuple[float, int, int, int] | None,
-) -> Any:
-    import_torch()
-    from openunmix.model import Separator
-
-    targets = {stem: _build_target(Path(path)) for stem, path, _ in paths}
-    shapes = {(t.nb_output_bins, t.fc1.in_features // t.nb_bins) for t in targets.values()}
-    if len(shapes) != 1:
-        raise InputError(f"OpenUnmix stem models disagree in bins/channels: {sorted(shapes)}")
-    nb_bins, nb_channels = shapes.pop()
-    n_fft = 2 * (nb_bins - 1)
-    sample_rate, n_hop = float(MODEL_SAMPLE_RATE), n_fft // 4
-    if stft is not None:  # separator.json of an OpenUnmix model folder
-        sample_rate, json_fft, n_hop, json_channels = stft
-        if (json_fft // 2 + 1, json_channels) != (nb_bins, nb_channels):
-            raise InputError(
-                f"separator.json says nfft {json_fft}, {json_channels} channel(s), but the weights "
-                f"have {nb_bins} bins (nfft {n_fft}) and {nb_channels} channel(s)"
-            )
-    separator = Separator(
-        target_models=targets,
-        niter=niter,
-        residual=False,
-        sample_rate=sample_rate,
-        n_fft=n_fft,
-        n_hop=n_hop,
-        nb_channels=nb_channels,
-        wiener_win_len=wiener_win_len,
-        filterbank="torch",
-    )
-    separator.freeze()
-    return separator.to(device)
-
-
-def load_separator(
-    model: str = "umxhq",
-    weights_dir: str | Path | None = None,
-    device: str = "cpu",
-    niter: int = 1,
-    wiener_win_len: int | None = 300,
-) -> Any:
-    """An ``openunmix.model.Separator`` for the four stems, in eval mode on ``device``.
-
-    Cached per weight files (path and mtime) and settings, so a featurize run loads weights once.
-    ``device`` is a torch device name, or ``"auto"`` for CUDA when available, else CPU. From an
-    OpenUnmix model folder the sample rate, n_fft and hop come from its ``separator.json``
-    (as ``openunmix.utils.load_separator`` reads them); otherwise 44.1 kHz, n_fft from the
-    weights' bins and hop n_fft / 4 (the published models' settings).
-    """
-    torch = import_torch()
-    if device == "auto":
-        device = "cuda" if torch.cuda.is_available() else "cpu"
-    files = find_weights(model, weights_dir)
-    key = tuple((stem, str(path), path.stat().st_mtime) for stem, path in files.items())
-    stft = None
-    if is_model_folder(weights_dir):
-        conf = read_separator_json(weights_dir)  # type: ignore[arg-type]
-        stft = (conf["sample_rate"], conf["nfft"], conf["nhop"], conf["nb_channels"])
-    return _cached_separator(key, device, int(niter), wiener_win_len, stft)
 
 
 def separator_settings(separator: Any) -> dict[str, Any]:
@@ -285,7 +186,8 @@ def run_chunked(
     inverse can come out inf/NaN. A chunk whose estimate is not finite is run again without the
     EM step (plain ratio masks, ``niter`` 0), with a warning, rather than failing the track.
     """
-    torch = import_torch()
+    import torch
+
     n_samples = audio.shape[-1]
     bounds = chunk_bounds(n_samples, chunk, overlap, align)
     out = np.zeros((len(separator.target_models), n_samples), dtype=np.float32)
@@ -349,21 +251,18 @@ def model_input(audio: np.ndarray, sr: float, model_sr: float, channels: int) ->
 def separate_channels(
     audio: np.ndarray,
     sr: float,
+    separator: Any,
     *,
     out_sr: float | None = None,
     out_length: int | None = None,
     res_type: str = "soxr_hq",
-    model: str = "umxhq",
-    weights_dir: str | Path | None = None,
-    device: str = "cpu",
-    niter: int = 1,
-    wiener_win_len: int | None = 300,
     chunk_seconds: float | None = None,
     overlap_seconds: float = 4.0,
     memory_mb: float = 4096.0,
 ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """Four OpenUnmix stems of ``audio`` ((samples,) or (channels, samples) at ``sr`` Hz, e.g. a
-    file's own samples at its own rate), and the plan they were made with.
+    file's own samples at its own rate) by ``separator`` (an ``openunmix.model.Separator``, see
+    :func:`dancedata.io.openunmix_model.load_separator`), and the plan they were made with.
 
     The model sees the channels and the rate of the input (see :func:`model_input`), over the
     whole track or in cross-faded chunks (see :func:`separation_plan`). Each stem is then the mean
@@ -373,7 +272,6 @@ def separate_channels(
     """
     import librosa
 
-    separator = load_separator(model, weights_dir, device, niter, wiener_win_len)
     device = str(separator.sample_rate.device)
     stft = separator_settings(separator)
     model_sr = stft["sample_rate"]
@@ -406,7 +304,7 @@ def separate_channels(
         chunk = int(round(plan["chunk_seconds"] * model_sr))
         # Chunk starts on the whole track's Wiener windows (wiener_win_len frames), when the
         # chunks are long enough; else on STFT frames.
-        windows = (wiener_win_len or 0) * stft["n_hop"]
+        windows = (separator.wiener_win_len or 0) * stft["n_hop"]
         align = windows if windows and chunk - overlap >= windows else stft["n_hop"]
         plan["aligned_to"] = "wiener_windows" if align == windows else "stft_frames"
         plan["step_seconds"] = (chunk - overlap) // align * align / model_sr
@@ -427,8 +325,8 @@ def separate_channels(
     return stems, plan
 
 
-def separate(y: np.ndarray, sr: float, **options: Any) -> dict[str, np.ndarray]:
-    """Four OpenUnmix stems of ``y`` ((samples,) or (channels, samples)) at ``sr`` Hz: mono
-    float32 with ``y``'s length and rate. ``options`` are :data:`DEFAULTS`' names; see
-    :func:`separate_channels`."""
-    return separate_channels(y, sr, **options)[0]
+def separate(y: np.ndarray, sr: float, separator: Any, **options: Any) -> dict[str, np.ndarray]:
+    """Four OpenUnmix stems of ``y`` ((samples,) or (channels, samples)) at ``sr`` Hz by the loaded
+    ``separator``: mono float32 with ``y``'s length and rate. ``options`` are the run options of
+    :data:`DEFAULTS` (not :data:`LOAD_OPTIONS`); see :func:`separate_channels`."""
+    return separate_channels(y, sr, separator, **options)[0]
