@@ -26,14 +26,14 @@ Workers = Annotated[
         "--workers",
         "-j",
         min=1,
-        help="Local worker processes for independent work units (same bytes as 1 worker).",
+        help="Local worker processes for independent tasks (same bytes as 1 worker).",
     ),
 ]
 Dask = Annotated[
     str | None,
     typer.Option(
         "--dask",
-        help="Run work units on Dask: a scheduler address (tcp://host:8786) or local:N to "
+        help="Run tasks on Dask: a scheduler address (tcp://host:8786) or local:N to "
         "start N local worker processes. Needs the 'scale' extra.",
     ),
 ]

@@ -349,7 +349,7 @@ def test_losing_every_worker_fails_in_bounded_time(fresh_cluster, monkeypatch):
     assert isinstance(error, ClusterError), error
     pattern = (
         rf"the Dask cluster at {re.escape(fresh_cluster.address)}: no workers left for 3 s; "
-        r"\d+ of 12 work units not done"
+        r"\d+ of 12 tasks not done"
     )
     assert re.fullmatch(pattern, str(error)), str(error)
     # Noticed by the scheduler (closed connections), then NO_WORKERS_S, polled every second.
@@ -372,7 +372,7 @@ def test_featurize_without_workers_fails_and_a_later_run_resumes(raw, tmp_path):
         assert proc.returncode == 1, proc.stderr
         assert re.fullmatch(
             rf"error: the Dask cluster at {re.escape(empty.address)}: no workers for 3 s; "
-            r"(\d+) of \1 work units not done\n",
+            r"(\d+) of \1 tasks not done\n",
             proc.stderr,
         ), proc.stderr
         assert time.monotonic() - start < 120
@@ -458,7 +458,7 @@ def test_scheduler_killed_mid_run_is_one_line(fresh_cluster, capfd):
     assert isinstance(error, ClusterError), error
     assert re.fullmatch(
         rf"the Dask cluster at {re.escape(fresh_cluster.address)}: lost the connection to the "
-        r"scheduler(; \d+ work units not done| \(.*\))",
+        r"scheduler(; \d+ tasks not done| \(.*\))",
         str(error),
     ), str(error)
     assert time.monotonic() - killed_at[0] < 30

@@ -134,7 +134,7 @@ def test_featurize_on_s3_resumes_after_a_crash(stores, monkeypatch, tmp_path):
 
     url = f"s3://{BUCKET}/stores/resume"
     ingest_aist(url, stores["raw"], AistIngestOptions())
-    real = featurize_module.run_audio_unit
+    real = featurize_module.run_audio_task
     calls = {"n": 0}
 
     def crash_on_second_track(job, unit):
@@ -143,13 +143,13 @@ def test_featurize_on_s3_resumes_after_a_crash(stores, monkeypatch, tmp_path):
             raise OSError("connection reset")
         return real(job, unit)
 
-    monkeypatch.setattr(featurize_module, "run_audio_unit", crash_on_second_track)
+    monkeypatch.setattr(featurize_module, "run_audio_task", crash_on_second_track)
     monkeypatch.setenv("DANCEDATA_CACHE", str(tmp_path / "feature-cache"))
     with pytest.raises(OSError):
         featurize(url, FeaturizeOptions())
     layout = StoreLayout(url)
     assert layout.committed_versions() == ["v1"] and len(layout.temp_dirs()) == 1
-    monkeypatch.setattr(featurize_module, "run_audio_unit", real)
+    monkeypatch.setattr(featurize_module, "run_audio_task", real)
     result = featurize(url, FeaturizeOptions())
     assert result.counts["resumed_units"] == 1  # the first track (tracks run first)
     assert layout.temp_dirs() == []

@@ -70,7 +70,7 @@ def data(tmp_path_factory):
     serial = fresh_store(raw, root / "serial")
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("DANCEDATA_CACHE", str(root / "feature-cache"))
-        result = featurize(serial, FeaturizeOptions(unit_frames=SMALL_UNITS))
+        result = featurize(serial, FeaturizeOptions(task_frames=SMALL_UNITS))
     return {"root": root, "raw": raw, "serial": serial, "result": result}
 
 
@@ -96,7 +96,7 @@ def test_two_worker_processes_write_the_same_bytes(data):
 def test_dask_local_cluster_writes_the_same_bytes(data):
     pytest.importorskip("distributed")
     store = fresh_store(data["raw"], data["root"] / "dask")
-    result = featurize(store, FeaturizeOptions(unit_frames=SMALL_UNITS, dask="local:2"))
+    result = featurize(store, FeaturizeOptions(task_frames=SMALL_UNITS, dask="local:2"))
     assert result.counts["engine"]["engine"] == "dask"
     assert result.counts["engine"]["workers"] == 2
     assert version_files(store, "v2") == version_files(data["serial"], "v2")
@@ -152,7 +152,7 @@ def test_motion_units_are_chunk_aligned_and_cover_every_frame_once():
 def test_featurize_interrupted_by_an_error_resumes_and_matches(data, monkeypatch):
     store = fresh_store(data["raw"], data["root"] / "interrupted")
     calls = {"n": 0}
-    real = featurize_module.run_audio_unit
+    real = featurize_module.run_audio_task
 
     def crash_on_third_track(job, unit):
         calls["n"] += 1
@@ -160,16 +160,16 @@ def test_featurize_interrupted_by_an_error_resumes_and_matches(data, monkeypatch
             raise RuntimeError("worker crashed")
         return real(job, unit)
 
-    monkeypatch.setattr(featurize_module, "run_audio_unit", crash_on_third_track)
+    monkeypatch.setattr(featurize_module, "run_audio_task", crash_on_third_track)
     with pytest.raises(RuntimeError, match="worker crashed"):
-        featurize(store, FeaturizeOptions(unit_frames=SMALL_UNITS))
+        featurize(store, FeaturizeOptions(task_frames=SMALL_UNITS))
     layout = StoreLayout(store)
     assert layout.committed_versions() == ["v1"]
     [temp] = layout.temp_dirs()  # kept for the next run, named from the fingerprint
     assert temp.name.startswith(".tmp-") and len(temp.name) == len(".tmp-") + 16
-    monkeypatch.setattr(featurize_module, "run_audio_unit", real)
+    monkeypatch.setattr(featurize_module, "run_audio_task", real)
 
-    result = featurize(store, FeaturizeOptions(unit_frames=SMALL_UNITS))
+    result = featurize(store, FeaturizeOptions(task_frames=SMALL_UNITS))
     assert result.counts["resumed_units"] == 2  # tracks run first: two had finished
     assert result.counts["units"] == 8
     assert layout.temp_dirs() == []

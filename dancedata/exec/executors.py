@@ -1,23 +1,23 @@
-"""Map a function over work units on one of three engines, yielding results as units finish.
+"""Map a function over tasks on one of three engines, yielding results as tasks finish.
 
 - :class:`SerialExecutor` runs in this process (``--workers 1``, the default).
 - :class:`ProcessExecutor` runs a local pool of spawned processes (``--workers N``); each worker
-  pins its numeric thread pools to one thread and stays alive for many units, so import and
-  numba compile costs are paid once per worker, not once per unit.
+  pins its numeric thread pools to one thread and stays alive for many tasks, so import and
+  numba compile costs are paid once per worker, not once per task.
 - :class:`DaskExecutor` runs on a Dask distributed cluster (``--dask tcp://host:8786``) or on a
   local one it starts (``--dask local:N``: N worker processes, one thread each).
 
-Functions and units must be picklable (top-level functions, plain data). Units are independent:
-they may run in any order and any number of times (a retried unit redoes its whole work).
+Functions and tasks must be picklable (top-level functions, plain data). Tasks are independent:
+they may run in any order and any number of times (a retried task redoes its whole work).
 A :class:`~dancedata.errors.DancedataError` (bad input) is never retried; other failures are
 retried up to ``retries`` times before the run fails.
 
 On Dask the retries are counted here, not by the scheduler (whose task ``retries`` would redo
-bad input too); a worker that dies while running a unit is handled by the scheduler (the unit
-moves to another worker, up to its ``allowed-failures``). A cluster that cannot run the units
+bad input too); a worker that dies while running a task is handled by the scheduler (the task
+moves to another worker, up to its ``allowed-failures``). A cluster that cannot run the tasks
 ends the run with one line (a :class:`ClusterError`, a DancedataError naming the scheduler):
 no scheduler at the address, the scheduler gone mid-run, or no worker for ``no_workers_timeout``
-seconds. Remote workers get the client's storage environment with every unit
+seconds. Remote workers get the client's storage environment with every task
 (:mod:`dancedata.exec.storage_env`), so they reach the store the client means.
 """
 
@@ -38,9 +38,9 @@ DEFAULT_RETRIES = 2
 # Seconds a Dask run waits with no worker in the cluster before it fails (all lost, none started).
 DEFAULT_NO_WORKERS_TIMEOUT_S = 30.0
 NO_WORKERS_TIMEOUT_ENV = "DANCEDATA_DASK_NO_WORKERS_TIMEOUT"
-# Seconds between looks at the cluster while no unit finishes.
+# Seconds between looks at the cluster while no task finishes.
 _POLL_S = 1.0
-# Seconds to fetch a finished unit's result (small: a dict of counts) before looking again.
+# Seconds to fetch a finished task's result (small: a dict of counts) before looking again.
 _FETCH_TIMEOUT_S = 5.0
 _NOT_FETCHED = object()
 # Seconds closing the client may take (the scheduler may be gone).
@@ -48,15 +48,15 @@ _CLOSE_TIMEOUT_S = 10.0
 
 
 class ClusterError(DancedataError):
-    """The Dask cluster cannot run the units (no scheduler, scheduler gone, no workers): one
-    line naming its address. Not bad input: the units finished so far are sound, so a
+    """The Dask cluster cannot run the tasks (no scheduler, scheduler gone, no workers): one
+    line naming its address. Not bad input: the tasks finished so far are sound, so a
     resumable build may be kept for the next run (``resumable``)."""
 
     resumable = True
 
 
 def _call(fn: Callable[[Any], Any], item: Any, env: Mapping[str, str] | None = None) -> Any:
-    """Run one unit in a worker, with its thread pools pinned (idempotent) and, when given,
+    """Run one task in a worker, with its thread pools pinned (idempotent) and, when given,
     the client's storage environment ``env`` applied first."""
     if env:
         apply_storage_env(env)
@@ -70,7 +70,7 @@ def _quit_quietly(signum: int, frame: object) -> None:
 
 def _init_worker(warmups: Sequence[Callable[[], None]]) -> None:
     # Ctrl-C reaches every process of the terminal's group: a worker leaves at once without a
-    # traceback (its unit is not marked done, so a resumed run redoes it); the parent reports.
+    # traceback (its task is not marked done, so a resumed run redoes it); the parent reports.
     import signal
 
     signal.signal(signal.SIGINT, _quit_quietly)
@@ -105,7 +105,7 @@ class Executor:
 
 
 class SerialExecutor(Executor):
-    """Every unit in this process, in order."""
+    """Every task in this process, in order."""
 
     def map_unordered(
         self, fn: Callable[[Any], Any], items: Sequence[Any]
@@ -187,7 +187,7 @@ class ProcessExecutor(Executor):
                         raise
                     except BrokenProcessPool as exc:
                         # A dead worker (killed, out of memory) breaks the whole pool: count an
-                        # attempt for every unit in flight, start a new pool, resubmit them.
+                        # attempt for every task in flight, start a new pool, resubmit them.
                         lost = [index, *pending.values()]
                         pending.clear()
                         self._pool.shutdown(wait=False, cancel_futures=True)
@@ -217,7 +217,7 @@ class ProcessExecutor(Executor):
 
 
 class DaskExecutor(Executor):
-    """Units as Dask tasks. ``address`` is a scheduler address (``tcp://host:8786``) or
+    """Tasks run on Dask. ``address`` is a scheduler address (``tcp://host:8786``) or
     ``local:N`` to start a LocalCluster of N worker processes with one thread each.
 
     ``connect_timeout``: seconds to reach the scheduler (default: Dask's
@@ -310,7 +310,7 @@ class DaskExecutor(Executor):
                 future = self.client.submit(_call, fn, items[index], env, pure=False)
             pending[future] = index
 
-        watch = _WorkerWatch(self, n_units=len(items))
+        watch = _WorkerWatch(self, n_tasks=len(items))
         try:
             for index in range(len(items)):
                 submit(index)
@@ -335,7 +335,7 @@ class DaskExecutor(Executor):
                         exc = future.exception()
                         if isinstance(exc, KilledWorker):
                             raise self._error(
-                                f"a work unit killed {exc.allowed_failures + 1} workers in turn "
+                                f"a task killed {exc.allowed_failures + 1} workers in turn "
                                 "(each died while running it: out of memory?); see the "
                                 "workers' logs"
                             ) from None
@@ -354,7 +354,7 @@ class DaskExecutor(Executor):
                     self.client.cancel(list(pending))
 
     def _fetch(self, future: Any, left: int) -> Any:
-        """The result of a finished unit, or ``_NOT_FETCHED`` when it does not arrive within
+        """The result of a finished task, or ``_NOT_FETCHED`` when it does not arrive within
         ``_FETCH_TIMEOUT_S``: the worker holding it died meanwhile, and the scheduler computes
         it again (when it has a worker: the caller keeps watching)."""
         try:
@@ -397,8 +397,8 @@ class DaskExecutor(Executor):
 
     def _cancelled(self, left: int) -> ClusterError:
         if self.client.status != "running":
-            return self._error(f"lost the connection to the scheduler; {left} work units not done")
-        return self._error(f"a work unit was cancelled on the cluster; {left} work units not done")
+            return self._error(f"lost the connection to the scheduler; {left} tasks not done")
+        return self._error(f"a task was cancelled on the cluster; {left} tasks not done")
 
     def close(self) -> None:
         if self.client is not None:
@@ -425,14 +425,14 @@ class _WorkerWatch:
     ``no-workers-timeout`` is set, which a client cannot rely on), so the client looks.
     """
 
-    def __init__(self, executor: DaskExecutor, n_units: int) -> None:
+    def __init__(self, executor: DaskExecutor, n_tasks: int) -> None:
         self.executor = executor
-        self.n_units = n_units
+        self.n_tasks = n_tasks
         self.had_workers = executor.started_with_workers
         self.empty_since: float | None = None
 
     def check(self, left: int) -> None:
-        """Called while no unit finishes: raises once the cluster has had no worker for
+        """Called while no task finishes: raises once the cluster has had no worker for
         ``no_workers_timeout`` seconds."""
         now = time.monotonic()
         if self.executor.n_workers():
@@ -445,7 +445,7 @@ class _WorkerWatch:
         if now - self.empty_since >= limit:
             gone = "no workers left" if self.had_workers else "no workers"
             raise self.executor._error(
-                f"{gone} for {limit:g} s; {left} of {self.n_units} work units not done"
+                f"{gone} for {limit:g} s; {left} of {self.n_tasks} tasks not done"
             )
 
 

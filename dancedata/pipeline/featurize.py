@@ -43,12 +43,9 @@ from dancedata.pipeline.featurize_tasks import (
     MotionJob,
     audio_output,
     plan_motion_tasks,
+    run_audio_task,  # called through this module: tests patch it to crash a track part-way
     run_motion_task,
 )
-
-# tests/test_scale.py and tests/test_remote.py patch featurize's ``run_audio_unit`` to crash a
-# track part-way; the old name stays until they patch ``run_audio_task``.
-from dancedata.pipeline.featurize_tasks import run_audio_task as run_audio_unit
 from dancedata.pipeline.motion_families import DEFAULT_FAMILIES as DEFAULT_MOTION_FAMILIES
 from dancedata.pipeline.music_inputs import (
     DEFAULT_MAX_AUDIO_SECONDS,
@@ -56,10 +53,10 @@ from dancedata.pipeline.music_inputs import (
     check_music_inputs,
 )
 from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter, create_checked_array
+from dancedata.store.backend_open import make_backend
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
-from dancedata.store.fs import is_remote
 from dancedata.store.layout import StoreLayout, warn_once
 from dancedata.store.reader import VersionReader
 from dancedata.store.writer import (
@@ -93,7 +90,7 @@ class FeaturizeOptions:
     # Execution only (never changes the data, so not in config()):
     workers: int = 1  # local worker processes
     dask: str | None = None  # Dask scheduler address, or "local:N"
-    unit_frames: int = 2 * CHUNK_FRAMES  # target motion frames per task
+    task_frames: int = 2 * CHUNK_FRAMES  # target motion frames per task
     use_cache: bool = True  # per-track audio features from/to the feature cache
     # Music inputs (dancedata.pipeline.music_inputs): a file changed since ingest is refused
     # unless accepted (then re-hashed and recorded); seconds decoded per track are limited.
@@ -248,7 +245,7 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
                 needed=plan.needed,
                 handed_on=plan.handed_on,
             )
-            tasks = plan_motion_tasks(starts, stops, CHUNK_FRAMES, options.unit_frames)
+            tasks = plan_motion_tasks(starts, stops, CHUNK_FRAMES, options.task_frames)
             jobs.append(
                 Job("motion", partial(run_motion_task, motion_job), "featurize motion", tasks)
             )
@@ -268,7 +265,7 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
             jobs.append(
                 Job(
                     "audio",
-                    partial(run_audio_unit, audio_job),
+                    partial(run_audio_task, audio_job),
                     "featurize audio",
                     audio_tasks,
                     "track",
@@ -345,7 +342,7 @@ def _music_inputs(
 
 def _store_id(store: str | Path) -> str:
     """The store as workers must name it: a URL, or an absolute local path."""
-    return str(store) if is_remote(store) else str(Path(store).resolve())
+    return make_backend(store).locator()
 
 
 def _prepare(

@@ -1,5 +1,5 @@
-"""featurize's tasks (work units): planned on the driver, run anywhere (this process, a process
-pool, Dask workers), each writing outputs no other task touches.
+"""featurize's tasks: planned on the driver, run anywhere (this process, a process pool, Dask
+workers), each writing outputs no other task touches.
 
 Motion tasks cover whole zarr chunks: task k writes output rows [frame_start, frame_stop), where
 frame_start is a chunk boundary and frame_stop is the next chunk boundary after the end of a
