@@ -19,15 +19,6 @@ from dancedata.errors import StoreError
 STORAGE_OPTIONS_ENV = "DANCEDATA_STORAGE_OPTIONS"
 
 
-def is_remote(store: str | Path) -> bool:
-    """True for an fsspec URL other than ``file://`` (a ``Path`` is always local). The store
-    modules ask their backend's capabilities instead (:mod:`dancedata.store.backend`)."""
-    if isinstance(store, Path):
-        return False
-    text = str(store)
-    return "://" in text and not text.startswith("file://")
-
-
 def storage_options() -> dict[str, Any]:
     """fsspec options from ``DANCEDATA_STORAGE_OPTIONS`` (JSON object), else none."""
     text = os.environ.get(STORAGE_OPTIONS_ENV, "").strip()

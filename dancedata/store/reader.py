@@ -39,12 +39,6 @@ class VersionReader:
     def manifest(self) -> dict[str, Any]:
         return self.layout.read_manifest(self.version)
 
-    @property
-    def remote(self) -> bool:
-        """Whether the store is on object storage rather than a local directory (for code
-        that still walks local folders itself; the reader does not need it)."""
-        return not self.layout.backend.renames_atomically
-
     @cached_property
     def root(self) -> zarr.Group | None:
         import warnings
