@@ -77,9 +77,9 @@ def storage_problem(exc: BaseException) -> str | None:
       ``"cannot reach S3 endpoint http://127.0.0.1:9: connection refused"``,
       ``"no S3 credentials found for endpoint ...: ..."``.
     """
-    remote = _object_store_problem(exc)
-    if remote is not None:
-        return remote
+    object_store = _object_store_problem(exc)
+    if object_store is not None:
+        return object_store
     import errno as errno_mod
 
     if not isinstance(exc, OSError):
@@ -101,9 +101,9 @@ def storage_error(exc: BaseException, store: str | Path, doing: str) -> StoreErr
     version"): naming ``store`` for a filesystem condition, naming the endpoint (which is what
     is wrong, whatever the store) for an object store that cannot be reached or refuses the
     credentials. None when ``exc`` is not such an error."""
-    remote = _object_store_problem(exc)
-    if remote is not None:
-        return StoreError(remote)
+    object_store = _object_store_problem(exc)
+    if object_store is not None:
+        return StoreError(object_store)
     problem = storage_problem(exc)
     if problem is None:
         return None
