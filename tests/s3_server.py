@@ -12,7 +12,9 @@ import contextlib
 import logging
 import os
 import socket
+import urllib.request
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 
@@ -23,16 +25,29 @@ CREDENTIALS = {
 }
 
 
-@contextlib.contextmanager
-def moto_s3(*buckets: str) -> Iterator[dict[str, str]]:
-    """Run a moto S3 server on a free loopback port while the block runs; yields the environment
-    (credentials, region, ``AWS_ENDPOINT_URL``) that is also set in ``os.environ`` meanwhile."""
+def start_moto_server() -> tuple[Any, str, int]:
+    """Start a moto S3 server on a free loopback port with no buckets: (server, host, port).
+
+    ``ThreadedMotoServer`` keeps its buckets in moto's in-process backends, which every server
+    started in this pytest process shares: without the reset, a bucket an earlier test module
+    made still exists here (and ``s3fs.mkdir`` of it raises FileExistsError)."""
     moto_server = pytest.importorskip("moto.server")
-    s3fs = pytest.importorskip("s3fs")
     logging.getLogger("werkzeug").setLevel(logging.ERROR)
     server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
     server.start()
     host, port = server.get_host_and_port()
+    reset = urllib.request.Request(f"http://{host}:{port}/moto-api/reset", method="POST")
+    with urllib.request.urlopen(reset, timeout=30) as answer:
+        assert answer.status == 200, answer.status
+    return server, host, port
+
+
+@contextlib.contextmanager
+def moto_s3(*buckets: str) -> Iterator[dict[str, str]]:
+    """Run a moto S3 server on a free loopback port while the block runs; yields the environment
+    (credentials, region, ``AWS_ENDPOINT_URL``) that is also set in ``os.environ`` meanwhile."""
+    s3fs = pytest.importorskip("s3fs")
+    server, host, port = start_moto_server()
     env = {**CREDENTIALS, "AWS_ENDPOINT_URL": f"http://{host}:{port}"}
     saved = {k: os.environ.get(k) for k in env}
     os.environ.update(env)

@@ -21,6 +21,7 @@ from dancedata.store.layout import StoreLayout
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
+from tests.s3_server import start_moto_server
 
 
 @pytest.fixture(scope="module")
@@ -152,12 +153,10 @@ BUCKET = "checkout"
 @pytest.fixture(scope="module")
 def s3_url(raw):
     """A moto S3 server on loopback with v1 ingest, v2 segment 4, v3 segment 2."""
-    moto_server = pytest.importorskip("moto.server")
+    pytest.importorskip("moto.server")
     s3fs = pytest.importorskip("s3fs")
     logging.getLogger("werkzeug").setLevel(logging.ERROR)
-    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
-    server.start()
-    host, port = server.get_host_and_port()
+    server, host, port = start_moto_server()  # empty: no bucket left by an earlier module
     env = {
         "AWS_ACCESS_KEY_ID": "testing",
         "AWS_SECRET_ACCESS_KEY": "testing",

@@ -38,6 +38,7 @@ from dancedata.exec.threads import thread_env
 from dancedata.store.fs import STORAGE_OPTIONS_ENV
 from dancedata.store.validate import validate_store
 from tests.helpers import REPO, importorskip_unless_ci, run_cli
+from tests.s3_server import start_moto_server
 
 importorskip_unless_ci("distributed")
 
@@ -291,9 +292,13 @@ def test_featurize_with_changed_music_is_one_line_run_once(cluster, raw, tmp_pat
     wav = sorted((copy / "wav").glob("*.wav"))[0]
     _flip_a_byte_keeping_the_stamp(wav)
     failed_before = cluster.worker_log_text().count("Compute Failed")
+    # An empty feature cache: a track whose features are cached (keyed by the hash verified at
+    # ingest) is never decoded, so an earlier test's run on the same synthetic music would hide
+    # the change from the worker's hash check.
     proc = run_cli(
         "featurize", str(store), "-q", "--no-motion", "--audio-families", "fact",
         "--stems", "none", "--dask", cluster.address, check=False, timeout=300,
+        env={"DANCEDATA_CACHE": str(tmp_path / "empty-cache")},
     )  # fmt: skip
     assert proc.returncode == 1, proc.stderr
     assert proc.stderr.splitlines() == [proc.stderr.strip()] and proc.stderr.startswith(
@@ -474,12 +479,10 @@ def s3(tmp_path_factory):
     that reaches it (the workers have none of it)."""
     import logging
 
-    moto_server = importorskip_unless_ci("moto.server")
+    importorskip_unless_ci("moto.server")
     s3fs = importorskip_unless_ci("s3fs")
     logging.getLogger("werkzeug").setLevel(logging.ERROR)
-    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
-    server.start()
-    host, port = server.get_host_and_port()
+    server, host, port = start_moto_server()  # empty: no bucket left by an earlier module
     env = {
         "AWS_ACCESS_KEY_ID": "testing",
         "AWS_SECRET_ACCESS_KEY": "testing",

@@ -21,6 +21,7 @@ from dancedata.store.validate import validate_store
 from dancedata.store.writer import VersionWriter
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
+from tests.s3_server import start_moto_server
 
 moto_server = pytest.importorskip("moto.server")
 s3fs = pytest.importorskip("s3fs")
@@ -32,9 +33,7 @@ BUCKET = "dance"
 def s3_env():
     """A moto S3 server on loopback, and the environment that points clients at it."""
     logging.getLogger("werkzeug").setLevel(logging.ERROR)
-    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
-    server.start()
-    host, port = server.get_host_and_port()
+    server, host, port = start_moto_server()  # empty: no bucket left by an earlier module
     env = {
         "AWS_ACCESS_KEY_ID": "testing",
         "AWS_SECRET_ACCESS_KEY": "testing",
