@@ -392,7 +392,7 @@ def read_results(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, A
             raise InputError("not a results folder (run `dancedata experiment run`)", path)
     try:
         record = json.loads(record_path.read_text(encoding="utf-8"))
-        rows = pq.read_table(table_path).to_pylist()
+        rows = pq.read_table(table_path, use_threads=False).to_pylist()  # (see store.reader)
     except (OSError, ValueError) as exc:
         raise InputError(f"unreadable results: {exc}", out_dir) from None
     return rows, record
