@@ -5,8 +5,6 @@ from the checked-out version. On a real local store and on S3 (moto server on lo
 from __future__ import annotations
 
 import json
-import logging
-import os
 import shutil
 
 import pytest
@@ -21,7 +19,7 @@ from dancedata.store.layout import StoreLayout
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
-from tests.s3_server import start_moto_server
+from tests.s3_server import moto_s3
 
 
 @pytest.fixture(scope="module")
@@ -153,34 +151,12 @@ BUCKET = "checkout"
 @pytest.fixture(scope="module")
 def s3_url(raw):
     """A moto S3 server on loopback with v1 ingest, v2 segment 4, v3 segment 2."""
-    pytest.importorskip("moto.server")
-    s3fs = pytest.importorskip("s3fs")
-    logging.getLogger("werkzeug").setLevel(logging.ERROR)
-    server, host, port = start_moto_server()  # empty: no bucket left by an earlier module
-    env = {
-        "AWS_ACCESS_KEY_ID": "testing",
-        "AWS_SECRET_ACCESS_KEY": "testing",
-        "AWS_DEFAULT_REGION": "us-east-1",
-        "AWS_ENDPOINT_URL": f"http://{host}:{port}",
-    }
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    s3fs.S3FileSystem.clear_instance_cache()
-    s3fs.S3FileSystem().mkdir(BUCKET)
     url = f"s3://{BUCKET}/store"
-    try:
+    with moto_s3(BUCKET):
         ingest_aist(url, raw, AistIngestOptions())
         segment(url, SegmentOptions(beats_per_measure=4))
         segment(url, SegmentOptions(beats_per_measure=2))
         yield url
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-        s3fs.S3FileSystem.clear_instance_cache()
-        server.stop()
 
 
 def test_checkout_on_s3(s3_url):

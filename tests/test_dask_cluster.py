@@ -38,7 +38,7 @@ from dancedata.exec.threads import thread_env
 from dancedata.store.fs import STORAGE_OPTIONS_ENV
 from dancedata.store.validate import validate_store
 from tests.helpers import REPO, importorskip_unless_ci, run_cli
-from tests.s3_server import start_moto_server
+from tests.s3_server import moto_s3
 
 importorskip_unless_ci("distributed")
 
@@ -477,32 +477,10 @@ def test_scheduler_killed_mid_run_is_one_line(fresh_cluster, capfd):
 def s3(tmp_path_factory):
     """A moto S3 server on loopback with bucket ``dance``, and the client-side environment
     that reaches it (the workers have none of it)."""
-    import logging
-
     importorskip_unless_ci("moto.server")
-    s3fs = importorskip_unless_ci("s3fs")
-    logging.getLogger("werkzeug").setLevel(logging.ERROR)
-    server, host, port = start_moto_server()  # empty: no bucket left by an earlier module
-    env = {
-        "AWS_ACCESS_KEY_ID": "testing",
-        "AWS_SECRET_ACCESS_KEY": "testing",
-        "AWS_DEFAULT_REGION": "us-east-1",
-        "AWS_ENDPOINT_URL": f"http://{host}:{port}",
-    }
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    s3fs.S3FileSystem.clear_instance_cache()
-    s3fs.S3FileSystem().mkdir("dance")
-    try:
+    importorskip_unless_ci("s3fs")
+    with moto_s3("dance") as env:
         yield env
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-        s3fs.S3FileSystem.clear_instance_cache()
-        server.stop()
 
 
 def test_workers_reach_the_store_through_the_clients_endpoint(cluster, s3, raw):

@@ -5,8 +5,6 @@ commit protocol promises (store.json is the commit point, one writer at a time).
 from __future__ import annotations
 
 import json
-import logging
-import os
 
 import numpy as np
 import pytest
@@ -21,7 +19,7 @@ from dancedata.store.validate import validate_store
 from dancedata.store.writer import VersionWriter
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
-from tests.s3_server import start_moto_server
+from tests.s3_server import moto_s3
 
 moto_server = pytest.importorskip("moto.server")
 s3fs = pytest.importorskip("s3fs")
@@ -32,28 +30,8 @@ BUCKET = "dance"
 @pytest.fixture(scope="module")
 def s3_env():
     """A moto S3 server on loopback, and the environment that points clients at it."""
-    logging.getLogger("werkzeug").setLevel(logging.ERROR)
-    server, host, port = start_moto_server()  # empty: no bucket left by an earlier module
-    env = {
-        "AWS_ACCESS_KEY_ID": "testing",
-        "AWS_SECRET_ACCESS_KEY": "testing",
-        "AWS_DEFAULT_REGION": "us-east-1",
-        "AWS_ENDPOINT_URL": f"http://{host}:{port}",
-    }
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    s3fs.S3FileSystem.clear_instance_cache()
-    s3fs.S3FileSystem().mkdir(BUCKET)
-    try:
+    with moto_s3(BUCKET) as env:
         yield env
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-        s3fs.S3FileSystem.clear_instance_cache()
-        server.stop()
 
 
 @pytest.fixture(scope="module")
