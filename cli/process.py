@@ -55,8 +55,12 @@ def featurize(
         typer.Option(
             help="Motion families, comma-separated: rotations; positions (FK; SMPL stores need "
             "--smpl-model); kinematics (velocity, acceleration, jerk, motion beats, kinetic "
-            "features, from positions); angular (angular velocity, weight effort); geometric "
-            "(SMPL-24 only). A family whose input arrays the store lacks is reported absent."
+            "features, from positions); angular (angular velocity, weight effort); "
+            "angular_derivatives (angular acceleration and jerk, per joint and summed); laban "
+            "(Laban Time, Space and Flow efforts from positions, 1 s windows); geometric "
+            "(SMPL-24 only); rotations_from_positions (joint rotations solved from positions, "
+            "for pose-only stores). A family whose input arrays the store lacks is reported "
+            "absent."
         ),
     ] = "rotations",
     audio: Annotated[bool, typer.Option(help="Compute audio features (once per track).")] = True,

@@ -35,11 +35,21 @@ from tests.test_motion_families import write_npz_model
 
 ROOT = Path(__file__).resolve().parents[1]
 MOTION = ["rotations", "positions", "kinematics", "angular", "geometric"]
-MOTION.append("rotations_from_positions")
+MOTION += ["rotations_from_positions", "laban", "angular_derivatives"]
 AUDIO = ["fact", "stems", "nmfd", "mel96", "stft_frames", "tempogram"]
 
 
 # ----------------------------------------------------------------------------- registry
+
+
+def test_featurize_help_names_every_family_it_accepts() -> None:
+    """The --motion-families / --audio-families help lists every registered family by name."""
+    import re
+
+    out = run_cli("featurize", "--help", env={"COLUMNS": "200"}).stdout
+    words = set(re.findall(r"[a-z_0-9]+", out))
+    missing = sorted(name for name in registered() if name not in words)
+    assert not missing, f"featurize --help does not name {missing}"
 
 
 def test_every_family_is_registered_once_by_group() -> None:

@@ -1,8 +1,9 @@
 """Motion features and scores (pure functions; axis 0 = time).
 
 * Derivatives of positions: velocity, acceleration, jerk (finite differences, units/s^n).
-* Angular velocity from quaternions, ω = 2·q̇·q̄ (rad/s), and the Laban "weight effort" (sum
-  of joint angular speeds) used by the genre-based dance generation thesis.
+* Angular velocity from quaternions, ω = 2·q̇·q̄ (rad/s), its derivatives (angular acceleration
+  rad/s², angular jerk rad/s³), and the Laban "weight effort" (sum of joint angular speeds) used
+  by the genre-based dance generation thesis. Time, Space and Flow are in ``compute.laban``.
 * Motion beats and beat-alignment scores in the two flavours in circulation. They give
   *different numbers* and are named after the code bases that define them:
     - ``mint`` (FACT / AIST++): beats are ``argrelextrema(order=10)`` minima of the summed joint
@@ -25,6 +26,8 @@ from scipy.signal import argrelextrema
 __all__ = [
     "SMPL_JOINT_NAMES",
     "acceleration",
+    "angular_acceleration",
+    "angular_jerk",
     "angular_velocity",
     "beat_align_score_bailando",
     "beat_align_score_mint",
@@ -95,6 +98,20 @@ def angular_velocity(quat: np.ndarray, fps: float) -> np.ndarray:
     dq = (q[1:] - q[:-1]) * fps
     conj = q[:-1] * np.array([1.0, -1.0, -1.0, -1.0])
     return 2.0 * _quat_mul(dq, conj)[..., 1:]
+
+
+def angular_acceleration(quat: np.ndarray, fps: float) -> np.ndarray:
+    """(F, ..., 4) wxyz → (F−2, ..., 3) angular acceleration (rad/s²): forward differences of
+    :func:`angular_velocity` × fps, in the same (parent) frame."""
+    omega = angular_velocity(quat, fps)
+    return np.diff(omega, n=1, axis=0) * fps
+
+
+def angular_jerk(quat: np.ndarray, fps: float) -> np.ndarray:
+    """(F, ..., 4) wxyz → (F−3, ..., 3) angular jerk (rad/s³): second forward differences of
+    :func:`angular_velocity` × fps²."""
+    omega = angular_velocity(quat, fps)
+    return np.diff(omega, n=2, axis=0) * fps**2
 
 
 def weight_effort(quat: np.ndarray, fps: float) -> np.ndarray:
