@@ -16,6 +16,7 @@ from dancedata.cli import (  # noqa: F401
     process,
     render,
     report,
+    stats,
     synth,
     unlock,
 )

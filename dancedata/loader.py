@@ -31,6 +31,7 @@ from dancedata.views import assemble, measures, thesis
 from dancedata.views.cameras import sequence_cameras
 from dancedata.views.layouts import AUDIO_VIEWS, MOTION_VIEWS, VIEWS
 from dancedata.views.measures import MeasureWindow
+from dancedata.views.normalization import ArrayStats, normalization
 
 if TYPE_CHECKING:
     from dancedata.cameras import CameraSet
@@ -84,6 +85,13 @@ class DanceStore(SequenceReader):
         component → weight (default all 1); ``normalize`` divides each column by its maximum
         over the sequence first."""
         return thesis.weighted_nmfd(self, seq_id, weights, normalize)
+
+    # -- normalisation statistics --------------------------------------------------------------
+    def normalization(self, array: str) -> ArrayStats:
+        """Mean and std of ``array`` (e.g. ``"motion/quat"``) over the split ``dancedata stats``
+        used, each of the array's row shape; normalise with
+        ``dancedata.compute.normalization.normalize(x, s.mean, s.std)``."""
+        return normalization(self, array)
 
     # -- AIST++ cameras ------------------------------------------------------------------------
     def cameras(self, seq_id: str) -> CameraSet:

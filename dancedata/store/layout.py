@@ -41,6 +41,7 @@ TABLE_FILES = {
     "splits": "splits.parquet",
     "cameras": "cameras.parquet",
     "keyframes": "keyframes.parquet",
+    "normalization": "normalization.parquet",
 }
 
 
