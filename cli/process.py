@@ -129,13 +129,24 @@ def segment(
             "strength, tracked beats and chroma (needs featurize; docs/STORE.md)."
         ),
     ] = "0",
+    tables: Annotated[
+        str,
+        typer.Option(
+            help="Unit tables, comma-separated: measures (always), beats (every beat of the "
+            "tempo grid: frame, index in its measure, downbeat flag), phrases (runs of "
+            "--phrase-measures measures)."
+        ),
+    ] = "measures",
+    phrase_measures: Annotated[
+        int, typer.Option(min=1, help="Measures per phrase (4 or 8 in most dance music).")
+    ] = 4,
     version: VersionOpt = None,
     wait: Wait = False,
     quiet: Quiet = False,
     as_json: Json = False,
 ) -> None:
     """Write the measures table: frames per measure = 60 / bpm × beats_per_measure × fps,
-    complete measures only, as a new version."""
+    complete measures only, as a new version; with --tables also the beats and phrases."""
     setup(quiet)
     from dancedata.pipeline.segment import SegmentOptions
     from dancedata.pipeline.segment import segment as run
@@ -153,6 +164,8 @@ def segment(
         version=version,
         wait_for_lock=wait,
         phase_auto=phase_auto,
+        tables=tuple(split_csv(tables) or ["measures"]),
+        phrase_measures=phrase_measures,
     )
     result = run(store, options)
     report(result, "segment", as_json, store=str(store))

@@ -6,6 +6,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from dancedata.compute.beat_units import beat_grid, phrase_bounds
 from dancedata.compute.downbeat import method_config
 from dancedata.compute.measures import measure_grid
 from dancedata.errors import InputError, StoreError
@@ -25,6 +28,20 @@ class SegmentOptions:
     # --phase auto: each sequence's downbeat phase estimated from its music's features
     # (dancedata.compute.downbeat); phase_frames is then unused.
     phase_auto: bool = False
+    # Which unit tables to write: measures always; beats and phrases on request.
+    tables: tuple[str, ...] = ("measures",)
+    phrase_measures: int = 4
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.tables) - set(UNIT_TABLES))
+        if unknown:
+            raise InputError(
+                f"unknown segment table(s) {', '.join(unknown)}; choose from "
+                f"{', '.join(UNIT_TABLES)}"
+            )
+        self.tables = tuple(t for t in UNIT_TABLES if t in self.tables or t == "measures")
+        if self.phrase_measures < 1:
+            raise InputError("--phrase-measures must be at least 1")
 
     def config(self) -> dict[str, Any]:
         # A numeric phase keeps the config (and so the fingerprint) it always had.
@@ -36,7 +53,78 @@ class SegmentOptions:
         }
         if self.phase_auto:
             config["phase_method"] = method_config(self.beats_per_measure)
+        if self.tables != ("measures",):  # the measures-only config keeps its old fingerprint
+            config["tables"] = list(self.tables)
+            config["beats"] = "tempo grid: beat j at phase + j*60/bpm*fps, nearest frame"
+            if "phrases" in self.tables:
+                config["phrase_measures"] = self.phrase_measures
         return config
+
+
+UNIT_TABLES = ("measures", "beats", "phrases")
+
+
+def beat_rows(
+    sequences: list[dict[str, Any]],
+    options: SegmentOptions,
+    phases: dict[str, float] | None = None,
+) -> list[dict[str, Any]]:
+    """One row per beat of the tempo grid inside every sequence with a BPM (the grid of the
+    measures: beat_in_measure 0 is a measure's first beat, a downbeat)."""
+    rows: list[dict[str, Any]] = []
+    for seq in sequences:
+        bpm, fps = seq.get("bpm"), float(seq["fps"])
+        if bpm is None or not bpm > 0:
+            continue
+        phase = options.phase_frames if phases is None else phases.get(seq["seq_id"], 0.0)
+        grid = beat_grid(int(seq["n_frames"]), float(bpm), fps, options.beats_per_measure, phase)
+        for j, frame, exact, measure, number, down in zip(
+            *(grid[k].tolist() for k in
+              ("beat", "frame", "time_exact", "measure", "beat_in_measure", "downbeat")),
+            strict=True,
+        ):
+            rows.append(
+                {
+                    "seq_id": seq["seq_id"],
+                    "beat": j,
+                    "frame": frame,
+                    "time": frame / fps,
+                    "time_exact": exact,
+                    "measure": measure,
+                    "beat_in_measure": number,
+                    "downbeat": down,
+                    "bpm": float(bpm),
+                }
+            )
+    return rows
+
+
+def phrase_rows(
+    sequences: list[dict[str, Any]], measures: list[dict[str, Any]], phrase_measures: int
+) -> list[dict[str, Any]]:
+    """One row per complete phrase of ``phrase_measures`` consecutive measures."""
+    fps = {s["seq_id"]: float(s["fps"]) for s in sequences}
+    by_seq: dict[str, list[tuple[int, int]]] = {}
+    for m in measures:
+        by_seq.setdefault(m["seq_id"], []).append((m["frame_start"], m["frame_stop"]))
+    rows: list[dict[str, Any]] = []
+    for seq_id, bounds in by_seq.items():
+        for k, (first, last, start, stop) in enumerate(
+            phrase_bounds(np.asarray(bounds), phrase_measures).tolist()
+        ):
+            rows.append(
+                {
+                    "seq_id": seq_id,
+                    "phrase": k,
+                    "measure_start": first,
+                    "measure_stop": last,
+                    "frame_start": start,
+                    "frame_stop": stop,
+                    "time_start": start / fps[seq_id],
+                    "time_stop": stop / fps[seq_id],
+                }
+            )
+    return rows
 
 
 def measure_rows(
@@ -126,14 +214,22 @@ def _segment_step(step: DerivedVersion, options: SegmentOptions) -> CommandResul
         phases, tracks = downbeat_phases(reader, sequences, options.beats_per_measure)
     rows = measure_rows(sequences, options, phases)
     check_measures(sequences, rows, str(step.store))
+    extra: dict[str, list[dict[str, Any]]] = {}
+    if "beats" in options.tables:
+        extra["beats"] = beat_rows(sequences, options, phases)
+    if "phrases" in options.tables:
+        extra["phrases"] = phrase_rows(sequences, rows, options.phrase_measures)
     with step.writer(config, fp) as version:
         version.write_table("measures", build_table("measures", rows))
+        for table, table_rows in extra.items():
+            version.write_table(table, build_table(table, table_rows))
         # One unit, committed atomically: segment is quick, so a killed run just starts over.
         counts = {
             "measures": len(rows),
             "sequences": len({r["seq_id"] for r in rows}),
             "units": 1,
             "resumed_units": 0,
+            **{table: len(table_rows) for table, table_rows in extra.items()},
         }
         if tracks is not None:  # per music track: where beat 1 fell (the phase moved from 0)
             counts["phase"] = tracks

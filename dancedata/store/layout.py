@@ -38,6 +38,8 @@ TABLE_FILES = {
     "sequences": "sequences.parquet",
     "music": "music.parquet",
     "measures": "measures.parquet",
+    "beats": "beats.parquet",
+    "phrases": "phrases.parquet",
     "splits": "splits.parquet",
     "cameras": "cameras.parquet",
     "keyframes": "keyframes.parquet",
