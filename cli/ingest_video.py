@@ -40,6 +40,9 @@ class FrameTimes(StrEnum):
 class CsvSkeleton(StrEnum):
     body25 = "body25"
     coco18 = "coco18"
+    h36m17 = "h36m17"
+    spin24 = "spin24"
+    hmr19 = "hmr19"
 
 
 @ingest_app.command("video")
@@ -65,8 +68,9 @@ def ingest_video_cmd(
         Path | None,
         typer.Option(
             help="3-d joints from a pose lifter, instead of or with --poses: a CSV (one video) "
-            "or a folder of <stem>.csv. Header columns <joint>_x/_y/_z (BODY_25 or COCO names "
-            "take that skeleton), optional frame or time column; stored in motion/positions."
+            "or a folder of <stem>.csv. Header columns <joint>_x/_y/_z (BODY_25, COCO-18, "
+            "H36M-17, SPIN-24 or HMR-19 names take that skeleton), optional frame or time "
+            "column; stored in motion/positions."
         ),
     ] = None,
     skeleton: Annotated[

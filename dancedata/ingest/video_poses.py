@@ -21,7 +21,6 @@ Masks (uint8, per frame and joint): 0 missing, 1 detected (read from the input),
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -32,6 +31,7 @@ from dancedata.compute.pose_tracking import fill_gaps, fill_tracked_gaps, track_
 from dancedata.compute.resample import ResampledPoses, check_frame_count, resample_by_time
 from dancedata.errors import InputError
 from dancedata.ingest.video_inputs import VideoInputs
+from dancedata.io.joint_sets import LIFTER_SETS, normalise_name
 from dancedata.io.joints_csv import read_joints_csv
 from dancedata.io.openpose import BODY_25, COCO_18, Skeleton, read_openpose_folder
 from dancedata.io.video_clock import VideoClock, read_video_clock
@@ -43,7 +43,7 @@ MASK_CODES = {
     str(MASK_FILLED): "gap-filled",
 }
 UNITS_TO_METRES = {"m": 1.0, "cm": 0.01, "mm": 0.001}
-SKELETONS = {"body25": BODY_25, "coco18": COCO_18}
+SKELETONS = {"body25": BODY_25, "coco18": COCO_18, **LIFTER_SETS}
 
 
 @dataclass(frozen=True)
@@ -128,22 +128,22 @@ class VideoPoses:
     bad_files: list[tuple[str, str]] = field(default_factory=list)
 
 
-def _norm(name: str) -> str:
-    return re.sub(r"[^a-z0-9]", "", name.lower())
-
-
 def skeleton_for_joints(names: tuple[str, ...]) -> tuple[dict[str, Any], list[int]]:
-    """Match CSV joint names to BODY_25 or COCO-18 (case, ``_``, ``.`` and spaces ignored).
+    """Match CSV joint names to a known joint set: BODY_25, COCO-18, H36M-17, SPIN-24 or HMR-19
+    (case and every character but letters and digits ignored; ``io.joint_sets``).
 
     Returns the skeleton dict and, for each of its joints, the CSV column group to take. Names
-    matching neither give ``{"name": "custom", "joints": names, "parents": [-1, ...]}`` (no
+    matching none give ``{"name": "custom", "joints": names, "parents": [-1, ...]}`` (no
     bone structure known) in CSV order.
     """
-    normed = [_norm(n) for n in names]
-    for skeleton in (BODY_25, COCO_18):
-        wanted = [_norm(j) for j in skeleton.joints]
-        if sorted(wanted) == sorted(normed) and len(set(normed)) == len(normed):
-            return skeleton.to_dict(), [normed.index(j) for j in wanted]
+    normed = [normalise_name(n) for n in names]
+    if len(set(normed)) == len(normed):
+        for known in (BODY_25, COCO_18, *LIFTER_SETS.values()):
+            spellings = known.spellings() if hasattr(known, "spellings") else [known.joints]
+            for spelling in spellings:
+                wanted = [normalise_name(j) for j in spelling]
+                if sorted(wanted) == sorted(normed):
+                    return known.to_dict(), [normed.index(j) for j in wanted]
     custom = {"name": "custom", "joints": list(names), "parents": [-1] * len(names)}
     return custom, list(range(len(names)))
 
@@ -181,7 +181,9 @@ def _read_csv(path: Path, settings: PoseSettings):
     joints = None
     if settings.skeleton is not None:
         if settings.skeleton not in SKELETONS:
-            raise InputError(f"unknown skeleton {settings.skeleton!r}; use body25 or coco18")
+            raise InputError(
+                f"unknown skeleton {settings.skeleton!r}; use one of {', '.join(SKELETONS)}"
+            )
         joints = list(SKELETONS[settings.skeleton].joints)
     try:
         return read_joints_csv(
@@ -190,7 +192,8 @@ def _read_csv(path: Path, settings: PoseSettings):
     except InputError as exc:
         if "no header row" in exc.problem:
             raise InputError(
-                "no header row: pass --skeleton body25 or coco18 to name its x, y, z columns",
+                "no header row: pass --skeleton (one of "
+                f"{', '.join(SKELETONS)}) to name its x, y, z columns",
                 path,
             ) from None
         raise

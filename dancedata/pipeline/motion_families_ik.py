@@ -59,7 +59,8 @@ def _check_skeleton(skeleton: dict[str, Any]) -> list[int]:
     if sum(p < 0 for p in parents) != 1:
         raise InputError(
             f"skeleton {name!r} has no bone structure ({sum(p < 0 for p in parents)} roots): name "
-            "the joints CSV's joints as BODY_25 or COCO-18 so that their parents are known"
+            "the joints CSV's joints by a known set (BODY_25, COCO-18, H36M-17, SPIN-24, HMR-19) "
+            "so that their parents are known"
         )
     return parents
 
