@@ -9,6 +9,7 @@ from dancedata.cli import (  # noqa: F401
     export_bvh,
     ingest,
     ingest_bvh,
+    ingest_music,
     ingest_video,
     inspect,
     keyframes,

@@ -124,7 +124,9 @@ class FrameArrays(FrameArrayTarget):
             raise ValueError(f"a record's arrays hold {sorted(lengths)} rows, not {n_frames}")
         for name, writer in self.writers.items():
             writer.append(arrays[name])
-        self.frames += lengths.pop() if lengths else 0
+        # A source without frame arrays (music alone) still places its sequences on the
+        # frame axis, one after the other, so frame ranges stay contiguous.
+        self.frames += lengths.pop() if lengths else (n_frames or 0)
 
     def close(self, group_attrs: dict[str, dict[str, Any]]) -> None:
         for writer in self.writers.values():
