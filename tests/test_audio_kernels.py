@@ -91,3 +91,17 @@ def test_repetition_background_is_the_brute_force_median_of_the_nearest_frames()
         sim[np.abs(np.arange(mag.shape[1]) - frame) < width] = -np.inf
         nearest = np.argsort(-sim, kind="stable")[:k]
         np.testing.assert_array_equal(got[:, frame], np.median(mag[:, nearest], axis=1))
+
+
+def test_offline_stems_from_a_shared_stft_are_the_stems_from_the_signal() -> None:
+    import librosa
+
+    from dancedata.compute.stems import separate
+
+    y = synth_dance_music(110.0, 3.0, sr=CFG.sr, seed=4)
+    spec = librosa.stft(y, n_fft=2048, hop_length=512)
+    shared, own = separate(y, CFG.sr, stft=spec), separate(y, CFG.sr)
+    for name in own:
+        np.testing.assert_array_equal(shared[name], own[name])
+    with pytest.raises(ValueError, match="shared STFT has shape"):
+        separate(y, CFG.sr, stft=spec[:, :-1])
