@@ -18,7 +18,25 @@ numba compilation and filter-bank caches are not billed to the song. Families:
 * ``stft_per_frame``  16 kHz, one STFT chunk per 30 fps motion frame (1025 × 3)
 * ``tempogram``       384-lag tempogram at 60 fps
 
+Then **CPU seconds per track of the default set, before and after** the audio speed-up: the
+code at ``--before`` (default: the commit before it) is extracted with ``git archive`` into a
+temporary folder and run side by side with this checkout, each in its own fresh process,
+alternately (``--rounds``), on the same track: the song above as a file, its first ``--seconds``
+decoded. Each process reports
+
+* ``startup``: imports, numba compilation and a first 2 s track (what every worker process pays
+  before its first real track);
+* per part, from featurize's own per-track step timings (:func:`compute_track_features`), with
+  the process's clock switched to CPU time: ``decode``, ``fact`` (with the mix's STFT, which
+  the stems now reuse), ``separate`` (offline stems), ``stems`` (per-stem features, with the
+  drums stem's |STFT|, which ``nmfd`` now reuses), ``nmfd``;
+* ``track``: the whole track (all of the above), the median of ``--repeats`` tracks.
+
+CPU seconds are the stable figure on a shared machine (wall time follows the load); the load
+average is printed with them. ``--no-before`` skips the side-by-side run.
+
 Usage: .venv/bin/python bench/bench_audio_families.py [--seconds 30] [--umxl] [--json]
+       [--before COMMIT] [--rounds 2] [--repeats 3] [--no-before] [--per-track-only]
 """
 
 from __future__ import annotations
@@ -26,6 +44,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -35,6 +55,9 @@ from pathlib import Path
 import numpy as np
 
 SR = 30720
+ROOT = Path(__file__).resolve().parents[1]
+BEFORE = "b417ef3"  # the last commit before the audio speed-up
+VIBE_ACE = "Kevin_MacLeod_-_Vibe_Ace.hq.ogg"
 _REAL = Path(
     os.environ.get(
         "DANCEDATA_REAL_DATA", Path(__file__).resolve().parents[1].parent / "shared/data/real"
@@ -106,12 +129,154 @@ def families(
     return out
 
 
+def song_file(folder: Path, seconds: float) -> Path:
+    """The bench song as a file: Vibe Ace itself, else the generated song written as WAV."""
+    path = _REAL / "audio" / VIBE_ACE
+    if path.is_file():
+        return path
+    import soundfile as sf
+
+    y, _ = load_song(seconds)
+    out = folder / "song.wav"
+    sf.write(out, y, SR, subtype="FLOAT")
+    return out
+
+
+def child(path: str, seconds: float, repeats: int) -> dict[str, object]:
+    """Runs in a fresh process whose ``sys.path`` starts at the code to measure: CPU seconds of
+    startup, of each step of one track, and of whole tracks (see the module docstring)."""
+    import warnings
+
+    warnings.simplefilter("ignore")
+    start = time.process_time()
+    # featurize's step timings read time.perf_counter; in this process they read CPU time
+    time.perf_counter = time.process_time
+    import dancedata
+    from dancedata.compute.audio_features import AudioFeatureConfig
+    from dancedata.pipeline.audio_families import default_families
+    from dancedata.pipeline.audio_track import compute_track_features
+    from dancedata.pipeline.family_settings import AudioSettings
+
+    settings, cfg = AudioSettings(), AudioFeatureConfig()
+    families = tuple(default_families(settings))
+    compute_track_features(families, settings, cfg, path, 120.0, span_s=2.0)
+    startup = time.process_time() - start
+    tracks, parts = [], []
+    for _ in range(repeats):
+        began = time.process_time()
+        _, stats = compute_track_features(families, settings, cfg, path, 120.0, span_s=seconds)
+        tracks.append(time.process_time() - began)
+        parts.append(stats["seconds"])
+    median = {k: statistics.median(p.get(k, 0.0) for p in parts) for k in parts[0]}
+    return {
+        "code": str(Path(dancedata.__file__).parent.parent),
+        "startup_cpu_s": startup,
+        "track_cpu_s": statistics.median(tracks),
+        "parts_cpu_s": median,
+        "beat_module_imported": "librosa.beat" in sys.modules,
+    }
+
+
+def run_child(code: Path, path: Path, seconds: float, repeats: int) -> dict[str, object]:
+    env = {**os.environ, "PYTHONPATH": str(code)}
+    argv = [sys.executable, __file__, "--child", str(path), "--seconds", str(seconds)]
+    argv += ["--repeats", str(repeats)]
+    load = os.getloadavg()[0]
+    wall = time.perf_counter()
+    out = subprocess.run(argv, env=env, capture_output=True, text=True, check=True).stdout
+    result = json.loads(out.strip().splitlines()[-1])
+    result.update(load=load, wall_s=time.perf_counter() - wall)
+    return result
+
+
+def extract(commit: str, folder: Path) -> Path | None:
+    """The package at ``commit`` in ``folder`` (git archive), or None without git or commit."""
+    try:
+        tar = subprocess.run(
+            ["git", "-C", str(ROOT), "archive", commit, "dancedata"],
+            capture_output=True,
+            check=True,
+        ).stdout
+        subprocess.run(["tar", "-x", "-C", str(folder)], input=tar, check=True)
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return folder
+
+
+def per_track(args: argparse.Namespace) -> dict[str, object]:
+    """Before/after CPU seconds per track, each side in fresh processes, alternately."""
+    sides: dict[str, list[dict[str, object]]] = {"after": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = song_file(Path(tmp), args.seconds)
+        (Path(tmp) / "before").mkdir()
+        before = None if args.no_before else extract(args.before, Path(tmp) / "before")
+        if before is not None:
+            sides["before"] = []
+        for _ in range(args.rounds):
+            if before is not None:
+                sides["before"].append(run_child(before, path, args.seconds, args.repeats))
+            sides["after"].append(run_child(ROOT, path, args.seconds, args.repeats))
+    return {"song": path.name, "seconds": args.seconds, "runs": sides}
+
+
+def _best(runs: list[dict[str, object]], key: str, part: str | None = None) -> float:
+    """The lowest over the runs: on a shared machine other jobs only ever add CPU time."""
+    if part is None:
+        return min(float(r[key]) for r in runs)  # type: ignore[arg-type]
+    return min(float(r[key].get(part, 0.0)) for r in runs)  # type: ignore[union-attr]
+
+
+def print_per_track(result: dict[str, object]) -> None:
+    runs: dict[str, list[dict[str, object]]] = result["runs"]  # type: ignore[assignment]
+    loads = [float(r["load"]) for side in runs.values() for r in side]
+    print(
+        f"\nCPU s per track of the default set (fact + offline stems + per-stem features + "
+        f"nmfd), {result['seconds']:g} s of {result['song']}, best of {len(runs['after'])} "
+        f"fresh processes per side; load average {min(loads):.1f}-{max(loads):.1f}"
+    )
+    parts = ["decode", "fact", "separate", "stems", "nmfd"]
+    sides = [s for s in ("before", "after") if s in runs]
+    print(
+        f"  {'step':<22}"
+        + "".join(f"{s:>10}" for s in sides)
+        + ("   ratio" if len(sides) > 1 else "")
+    )
+    rows = [(p, "parts_cpu_s", p) for p in parts]
+    rows += [
+        ("track (all steps)", "track_cpu_s", None),
+        ("startup (imports, JIT)", "startup_cpu_s", None),
+    ]
+    for label, key, part in rows:
+        values = [_best(runs[s], key, part) for s in sides]
+        ratio = f"  x{values[0] / values[1]:.2f}" if len(values) > 1 and values[1] > 0 else ""
+        print(f"  {label:<22}" + "".join(f"{v:10.3f}" for v in values) + ratio)
+    for side in sides:
+        walls = ", ".join(f"{float(r['wall_s']):.0f}" for r in runs[side])
+        imported = any(r["beat_module_imported"] for r in runs[side])
+        print(f"  {side}: process wall s {walls}; librosa.beat imported: {imported}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0)
     parser.add_argument("--umxl", action="store_true", help="umxl-sized network (hidden 1024)")
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--before", default=BEFORE, help="commit of the code to compare with")
+    parser.add_argument("--no-before", action="store_true", help="skip the side-by-side run")
+    parser.add_argument("--rounds", type=int, default=2, help="fresh processes per side")
+    parser.add_argument("--repeats", type=int, default=3, help="tracks per process")
+    parser.add_argument("--per-track-only", action="store_true")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.child:
+        print(json.dumps(child(args.child, args.seconds, args.repeats)))
+        return 0
+    if args.per_track_only:
+        result = per_track(args)
+        print(json.dumps(result) if args.json else "", end="")
+        if not args.json:
+            print_per_track(result)
+        return 0
 
     song, source = load_song(args.seconds)
     with tempfile.TemporaryDirectory() as tmp:
@@ -129,8 +294,13 @@ def main() -> int:
                 "wall_s": time.perf_counter() - wall,
                 "cpu_s": time.process_time() - cpu,
             }
+    track = per_track(args)
     if args.json:
-        print(json.dumps({"song": source, "seconds": args.seconds, "results": results}))
+        print(
+            json.dumps(
+                {"song": source, "seconds": args.seconds, "results": results, "per_track": track}
+            )
+        )
         return 0
     load = os.getloadavg()[0]
     print(f"{args.seconds:g} s of {source} at {SR} Hz, {os.cpu_count()} cpu(s), load {load:.1f}")
@@ -139,6 +309,7 @@ def main() -> int:
         print(f"  {name:<16} {t['wall_s']:8.2f} {t['cpu_s']:8.2f}")
     if umx_dir is None:
         print("  stems_openunmix  skipped (pip install 'dancedata[stems]')")
+    print_per_track(track)
     return 0
 
 

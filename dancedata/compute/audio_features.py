@@ -44,14 +44,30 @@ class AudioFeatureConfig:
         return {**asdict(self), "sr": self.sr}
 
 
-def log_mel(y: np.ndarray, cfg: AudioFeatureConfig) -> np.ndarray:
+def log_mel(y: np.ndarray, cfg: AudioFeatureConfig, mag: np.ndarray | None = None) -> np.ndarray:
     """The log-power (dB) mel spectrogram both onset_strength and mfcc compute from ``y`` with
     librosa's defaults (128 mels, power 2, ref 1.0), (128, A) float32: computed once, it gives
-    both the very same numbers for one STFT instead of two."""
+    both the very same numbers for one STFT instead of two. ``mag`` is |STFT| of ``y``
+    (``n_fft``, ``hop_length``, Hann, centred) when already computed: squared, it is the very
+    power spectrogram melspectrogram(y=...) computes."""
     import librosa
 
-    mel = librosa.feature.melspectrogram(y=y, sr=cfg.sr, n_fft=cfg.n_fft, hop_length=cfg.hop_length)
+    if mag is not None:
+        mel = librosa.feature.melspectrogram(S=mag**2.0, sr=cfg.sr, n_fft=cfg.n_fft)
+    else:
+        mel = librosa.feature.melspectrogram(
+            y=y, sr=cfg.sr, n_fft=cfg.n_fft, hop_length=cfg.hop_length
+        )
     return librosa.power_to_db(mel)
+
+
+def stft(y: np.ndarray, cfg: AudioFeatureConfig) -> np.ndarray:
+    """``librosa.stft`` of ``y`` with the recipe's ``n_fft`` and ``hop_length`` (Hann, centred),
+    (1 + n_fft / 2, A) complex64: the one STFT of the mix that the mel spectrogram, the tuning
+    estimate of chroma_cens and the offline stems share."""
+    import librosa
+
+    return librosa.stft(np.asarray(y, dtype=np.float32), n_fft=cfg.n_fft, hop_length=cfg.hop_length)
 
 
 def onset_envelope(
@@ -81,12 +97,23 @@ def mfcc(y: np.ndarray, cfg: AudioFeatureConfig, s_db: np.ndarray | None = None)
     return coeffs.T.astype(np.float32)
 
 
-def chroma_cens(y: np.ndarray, cfg: AudioFeatureConfig) -> np.ndarray:
-    """Chroma energy-normalised statistics, (A, 12) float32."""
+def chroma_cens(
+    y: np.ndarray, cfg: AudioFeatureConfig, mag: np.ndarray | None = None
+) -> np.ndarray:
+    """Chroma energy-normalised statistics, (A, 12) float32.
+
+    The CQT under it first estimates the tuning by ``librosa.estimate_tuning`` (36 bins per
+    octave, chroma_cqt's), whose pitch tracker takes |STFT| with n_fft 2048 and hop 512; when
+    ``mag`` is that very |STFT| (the recipe's defaults) it is handed over instead of being
+    computed again, and the tuning, hence every value, is the same.
+    """
     import librosa
 
+    tuning = None
+    if mag is not None and cfg.n_fft == 2048 and cfg.hop_length == 512:
+        tuning = librosa.estimate_tuning(S=mag, sr=cfg.sr, n_fft=cfg.n_fft, bins_per_octave=36)
     chroma = librosa.feature.chroma_cens(
-        y=y, sr=cfg.sr, hop_length=cfg.hop_length, n_chroma=cfg.n_chroma
+        y=y, sr=cfg.sr, hop_length=cfg.hop_length, n_chroma=cfg.n_chroma, tuning=tuning
     )
     return chroma.T.astype(np.float32)
 
@@ -104,18 +131,50 @@ def onset_peaks(env: np.ndarray, cfg: AudioFeatureConfig) -> np.ndarray:
 def beats(env: np.ndarray, bpm: float | None, cfg: AudioFeatureConfig) -> np.ndarray:
     """One-hot (A,) uint8 of tracked beats; ``bpm`` (the music's known tempo) seeds the
     tracker as start_bpm. Without a known tempo librosa's default prior (120 BPM) is used."""
+    return _one_hot(beat_frames(env, bpm, cfg), env.shape[0])
+
+
+def beat_frames(env: np.ndarray, bpm: float | None, cfg: AudioFeatureConfig) -> np.ndarray:
+    """Beat frames of ``librosa.beat.beat_track(onset_envelope=env, start_bpm=bpm or 120,
+    tightness=cfg.beat_tightness, trim=True)``, the same frames (librosa 0.11's algorithm: tempo
+    by ``librosa.feature.tempo``, Ellis's dynamic program, last beat above half the median
+    cumulative score of the local maxima, weak leading and trailing beats trimmed), without
+    importing librosa.beat, which compiles a numba kernel at import without caching it (1-3 s
+    per process); the loops here are compiled once per machine
+    (:mod:`dancedata.compute.jit_kernels`)."""
     import librosa
 
-    kwargs = {"start_bpm": float(bpm)} if bpm else {}
-    _, frames = librosa.beat.beat_track(
-        onset_envelope=env,
+    from dancedata.compute.jit_kernels import (
+        beat_backtrack_and_trim,
+        beat_local_score,
+        beat_track_dp,
+    )
+
+    onsets = np.asarray(env)
+    if not onsets.any():
+        return np.zeros(0, dtype=np.int64)
+    tempo = librosa.feature.tempo(
+        onset_envelope=onsets,
         sr=cfg.sr,
         hop_length=cfg.hop_length,
-        tightness=cfg.beat_tightness,
-        units="frames",
-        **kwargs,
+        start_bpm=float(bpm) if bpm else 120.0,
     )
-    return _one_hot(frames, env.shape[0])
+    tempo = np.atleast_1d(tempo)
+    if np.any(tempo <= 0):
+        raise ValueError(f"estimated tempo {tempo} must be strictly positive")
+    frames_per_beat = float(np.round(float(cfg.sr) / cfg.hop_length * 60.0 / tempo)[0])
+    normalised = onsets / (onsets.std(ddof=1, axis=-1, keepdims=True) + librosa.util.tiny(onsets))
+    localscore = beat_local_score(normalised.astype(np.float64), frames_per_beat)
+    tightness = float(np.float32(cfg.beat_tightness))  # librosa's DP takes it as float32
+    backlink, cumscore = beat_track_dp(localscore, frames_per_beat, tightness)
+    peaks = librosa.util.localmax(cumscore, axis=-1)
+    threshold = 0.5 * np.ma.getdata(np.ma.median(np.ma.masked_array(cumscore, mask=~peaks)))
+    tail = len(cumscore) - 1
+    for frame in range(len(cumscore) - 1, -1, -1):
+        if peaks[frame] and cumscore[frame] >= threshold:
+            tail = frame
+            break
+    return np.flatnonzero(beat_backtrack_and_trim(localscore, backlink, tail, True))
 
 
 def _one_hot(frames: np.ndarray, length: int) -> np.ndarray:
@@ -126,15 +185,17 @@ def _one_hot(frames: np.ndarray, length: int) -> np.ndarray:
 
 
 def fact_features(
-    y: np.ndarray, bpm: float | None, cfg: AudioFeatureConfig
+    y: np.ndarray, bpm: float | None, cfg: AudioFeatureConfig, spec: np.ndarray | None = None
 ) -> dict[str, np.ndarray]:
-    """All five FACT features of one track, trimmed to a common frame count."""
-    s_db = log_mel(y, cfg)  # shared by onset_env and mfcc: one STFT, the same numbers
+    """All five FACT features of one track, trimmed to a common frame count. ``spec`` is
+    :func:`stft` of ``y`` when already computed (shared with the offline stems)."""
+    mag = np.abs(spec if spec is not None else stft(y, cfg))
+    s_db = log_mel(y, cfg, mag)  # shared by onset_env and mfcc: one STFT, the same numbers
     env = onset_envelope(y, cfg, s_db)
     features = {
         "onset_env": env,
         "mfcc": mfcc(y, cfg, s_db),
-        "chroma_cens": chroma_cens(y, cfg),
+        "chroma_cens": chroma_cens(y, cfg, mag),
         "onset_peaks": onset_peaks(env, cfg),
         "beats": beats(env, bpm, cfg),
     }

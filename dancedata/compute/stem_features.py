@@ -32,23 +32,27 @@ def stem_features(
     hop_length: int = 512,
     n_fft: int = 2048,
     n_mfcc: int = 20,
+    mag: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """FACT-style features of one mono stem at ``sr`` Hz, one row per hop of ``hop_length``.
 
     Returns ``onset_env`` (A,) float32 (spectral flux of the log-mel spectrogram), ``mfcc``
     (A, n_mfcc) float32 and ``onset_peaks`` (A,) uint8 (1 where ``onset_detect`` on that envelope
     fires). A silent stem (Ballet Jazz has no drums) gives a zero envelope and no peaks.
+    ``mag`` is :func:`stem_magnitude` of ``y`` when already computed (the drums stem's is
+    shared with its NMFD).
     """
     import librosa
 
     signal = np.asarray(y, dtype=np.float32)
     if signal.ndim != 1 or signal.size == 0:
         raise InputError(f"a stem must be a non-empty mono signal, got shape {signal.shape}")
+    if mag is None:
+        mag = stem_magnitude(signal, hop_length, n_fft)
     # onset_strength(y=...) and mfcc(y=...) each compute this same log-power mel spectrogram
-    # (128 bands up to sr / 2); computed once and handed to both, the numbers are unchanged.
-    mel_db = librosa.power_to_db(
-        librosa.feature.melspectrogram(y=signal, sr=sr, n_fft=n_fft, hop_length=hop_length)
-    )
+    # (128 bands up to sr / 2) from |STFT|²; computed once and handed to both, the numbers are
+    # unchanged.
+    mel_db = librosa.power_to_db(librosa.feature.melspectrogram(S=mag**2.0, sr=sr, n_fft=n_fft))
     env = librosa.onset.onset_strength(S=mel_db, sr=sr, hop_length=hop_length, n_fft=n_fft)
     mfcc = librosa.feature.mfcc(S=mel_db, sr=sr, n_mfcc=n_mfcc).T
     peaks = np.zeros(env.shape[0], dtype=np.uint8)
@@ -62,16 +66,30 @@ def stem_features(
     }
 
 
+def stem_magnitude(y: np.ndarray, hop_length: int = 512, n_fft: int = 2048) -> np.ndarray:
+    """|STFT| of a mono signal, (1 + n_fft / 2, 1 + n // hop_length) float32: Hann window,
+    centred, as librosa.feature.melspectrogram(y=...) and the NMFD of the drums take it."""
+    import librosa
+
+    signal = np.asarray(y, dtype=np.float32)
+    return np.abs(librosa.stft(signal, n_fft=n_fft, hop_length=hop_length))
+
+
 def all_stem_features(
     stems: Mapping[str, np.ndarray],
     sr: float,
     hop_length: int = 512,
     n_fft: int = 2048,
     n_mfcc: int = 20,
+    mags: Mapping[str, np.ndarray] | None = None,
 ) -> dict[str, dict[str, np.ndarray]]:
-    """:func:`stem_features` for every stem: {stem: {feature: array}}."""
+    """:func:`stem_features` for every stem: {stem: {feature: array}}; ``mags`` holds
+    :func:`stem_magnitude` of the stems already computed."""
+    mags = mags or {}
     return {
-        name: stem_features(signal, sr, hop_length=hop_length, n_fft=n_fft, n_mfcc=n_mfcc)
+        name: stem_features(
+            signal, sr, hop_length=hop_length, n_fft=n_fft, n_mfcc=n_mfcc, mag=mags.get(name)
+        )
         for name, signal in stems.items()
     }
 

@@ -95,6 +95,11 @@ class FactFamily(AudioFamily):
     ) -> dict[str, np.ndarray]:
         return fact_features(y, bpm, cfg)
 
+    def compute_track(
+        self, track: TrackAudio, settings: AudioSettings | None = None
+    ) -> dict[str, np.ndarray]:
+        return fact_features(track.y, track.bpm, track.cfg, track.stft())
+
 
 DEFAULT_FAMILIES: tuple[str, ...] = ("fact", "stems", "nmfd")
 STEM_FAMILIES: tuple[str, ...] = ("stems", "nmfd")

@@ -39,6 +39,7 @@ from dancedata.pipeline.family import register_family
 from dancedata.store.checksums import sha256_file
 
 SEPARATE_KEY = "separate"
+DRUMS_MAG_KEY = "drums_stft"
 # How the openunmix backend is fed and how its stems reach the feature rate (recorded).
 OPENUNMIX_SEPARATION: dict[str, str] = {
     "input": "the music file's own samples: its channels and its sample rate",
@@ -114,11 +115,41 @@ def track_stems(track: TrackAudio, settings: AudioSettings) -> dict[str, np.ndar
 
     if settings.stems == "openunmix":
         return track.shared(SEPARATE_KEY, lambda: openunmix_stems(track, settings))
+    options = separation_options(settings)
     return track.shared(
         SEPARATE_KEY,
         lambda: separate(
-            track.y, track.cfg.sr, backend=settings.stems, **separation_options(settings)
+            track.y,
+            track.cfg.sr,
+            backend=settings.stems,
+            stft=track.stft() if _stft_agrees(track.cfg, settings) else None,
+            **options,
         ),
+    )
+
+
+def _stft_agrees(cfg: AudioFeatureConfig, settings: AudioSettings) -> bool:
+    """Whether the offline backend's STFT is the track's shared one (same n_fft and hop)."""
+    from dancedata.compute.stems import backend_config
+
+    config = backend_config(settings.stems, **separation_options(settings))
+    return settings.stems == "offline" and (config["n_fft"], config["hop_length"]) == (
+        cfg.n_fft,
+        cfg.hop_length,
+    )
+
+
+def drums_magnitude(track: TrackAudio, settings: AudioSettings) -> np.ndarray:
+    """|STFT| of the drums stem (``cfg.n_fft``, ``cfg.hop_length``), computed once per track:
+    the drums' stem features and the NMFD both start from it (its time counts for the first of
+    them)."""
+    from dancedata.compute.stem_features import stem_magnitude
+
+    cfg = track.cfg
+    return track.shared(
+        DRUMS_MAG_KEY,
+        lambda: stem_magnitude(track_stems(track, settings)["drums"], cfg.hop_length, cfg.n_fft),
+        timed=False,
     )
 
 
@@ -239,12 +270,14 @@ class StemFeaturesFamily(AudioFamily):
         from dancedata.compute.stem_features import all_stem_features
 
         cfg = track.cfg
+        settings = settings or _DEFAULT
         features = all_stem_features(
-            track_stems(track, settings or _DEFAULT),
+            track_stems(track, settings),
             cfg.sr,
             hop_length=cfg.hop_length,
             n_fft=cfg.n_fft,
             n_mfcc=cfg.n_mfcc,
+            mags={"drums": drums_magnitude(track, settings)},
         )
         return {
             f"stems/{stem}/{name}": values
@@ -321,6 +354,7 @@ class NmfdDrumsFamily(AudioFamily):
             n_fft=cfg.n_fft,
             n_lags=settings.nmfd_template_frames,
             n_iter=settings.nmfd_iterations,
+            mag=drums_magnitude(track, settings),
         )
         return {"nmfd_drums": activations}
 

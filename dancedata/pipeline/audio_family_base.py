@@ -32,6 +32,8 @@ __all__ = [
     "TrackAudio",
 ]
 
+STFT_KEY = "stft"  # the mix's STFT in TrackAudio.shared
+
 # Distributions whose versions can change any family's numbers (decoding, resampling, features).
 BASE_LIBRARIES: tuple[str, ...] = ("librosa", "numpy", "scipy", "soundfile", "soxr")
 
@@ -83,14 +85,30 @@ class TrackAudio:
             self.timings["decode"] = time.perf_counter() - start
         return self._y
 
-    def shared(self, key: str, make: Callable[[], Any]) -> Any:
-        """``make()`` computed once per track and ``key`` (e.g. the stems of one backend)."""
+    def shared(self, key: str, make: Callable[[], Any], timed: bool = True) -> Any:
+        """``make()`` computed once per track and ``key`` (e.g. the stems of one backend).
+        Its seconds are a step of their own in ``timings`` (less those of the shared steps it
+        asked for), unless ``timed`` is false: then they count for whichever family or step
+        asked first (a quick intermediate such as one STFT)."""
         if key not in self._shared:
             self.y  # noqa: B018 - decode first, so its time is not billed to ``key``
+            if not timed:
+                self._shared[key] = make()
+                return self._shared[key]
             start = time.perf_counter()
-            self._shared[key] = make()
-            self.timings[key] = time.perf_counter() - start
+            nested = self.shared_seconds()
+            value = make()
+            self.timings[key] = time.perf_counter() - start - (self.shared_seconds() - nested)
+            self._shared[key] = value
         return self._shared[key]
+
+    def stft(self) -> np.ndarray:
+        """``librosa.stft`` of ``y`` with ``cfg.n_fft`` and ``cfg.hop_length`` (Hann, centred),
+        computed once per track: the FACT features and the offline stems both start from it.
+        Its time counts for the first family or step that asks for it."""
+        from dancedata.compute.audio_features import stft
+
+        return self.shared(STFT_KEY, lambda: stft(self.y, self.cfg), timed=False)
 
     def shared_seconds(self) -> float:
         """Seconds spent so far in the decode and in shared computations."""

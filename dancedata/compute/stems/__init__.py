@@ -80,6 +80,7 @@ def separate(
     backend: str = DEFAULT_BACKEND,
     *,
     separator: Any = None,
+    stft: np.ndarray | None = None,
     **options: Any,
 ) -> dict[str, np.ndarray]:
     """Split a waveform at ``sr`` Hz into {drums, bass, vocals, other}.
@@ -89,7 +90,9 @@ def separate(
     ``openunmix`` needs ``separator``, loaded with
     :func:`dancedata.io.openunmix_model.load_separator`; the options that load it
     (``openunmix.LOAD_OPTIONS``: model, weights folder, device, niter, Wiener window) are not
-    taken here, only its run options (chunking, memory limit).
+    taken here, only its run options (chunking, memory limit). ``offline`` may be given the
+    mono mix's STFT with its own ``n_fft`` and ``hop_length`` as ``stft`` (computed once per
+    track and shared with other features); other backends take none.
     """
     config = backend_config(backend, **options)
     audio = check_audio(y, sr)
@@ -108,5 +111,9 @@ def separate(
         config["separator"] = separator
     elif separator is not None:
         raise InputError(f"stem backend {backend!r} takes no separator")
+    if stft is not None:
+        if backend != "offline":
+            raise InputError(f"stem backend {backend!r} takes no precomputed STFT")
+        config["stft"] = stft
     stems: Mapping[str, np.ndarray] = module.separate(audio, float(sr), **config)
     return {name: np.asarray(stems[name], dtype=np.float32) for name in STEM_NAMES}

@@ -1,0 +1,163 @@
+"""Compiled loops of the audio features, each a plain function of arrays (numba, ``cache=True``).
+
+Every kernel is compiled on its first call and the machine code is kept in numba's on-disk cache
+(next to this file, or in numba's per-user cache folder when that is read-only), so compilation
+is paid once per machine and installed version, not once per process or worker. Import this
+module only where a kernel is called: it imports numba.
+
+Kernels compute exactly what the numpy code they replace computed (a selection returns one of
+its inputs; the loops add in the same order), so results are identical, not merely close.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def neighbour_median(frames: np.ndarray, nearest: np.ndarray, out: np.ndarray, start: int) -> None:
+    """``out[start + j, b]`` = median over i of ``frames[nearest[j, i], b]``.
+
+    ``frames`` is (frames, bins), ``nearest`` (rows, k) frame indices with k odd, ``out``
+    (frames, bins). The median of an odd count k is the value of rank k // 2 when equal values
+    are ranked by their position (value i is above value m when x_m < x_i, or x_m = x_i and
+    m < i): the very value ``np.partition(..., k // 2)`` picks. Ranks are counted, k·(k − 1)
+    comparisons per bin without a branch, which vectorise across the bins (a selection's
+    data-dependent branches do not).
+    """
+    rows, k = nearest.shape
+    bins = frames.shape[1]
+    mid = k // 2
+    rank = np.empty(bins, dtype=np.int32)
+    for j in range(rows):
+        target = out[start + j]
+        for i in range(k):
+            candidate = frames[nearest[j, i]]
+            rank[:] = 0
+            for m in range(i):
+                other = frames[nearest[j, m]]
+                for b in range(bins):
+                    rank[b] += other[b] <= candidate[b]
+            for m in range(i + 1, k):
+                other = frames[nearest[j, m]]
+                for b in range(bins):
+                    rank[b] += other[b] < candidate[b]
+            for b in range(bins):
+                if rank[b] == mid:
+                    target[b] = candidate[b]
+
+
+# -- beat tracking (the dynamic program of Ellis 2007, as librosa.beat.beat_track runs it) -----
+# librosa 0.11 compiles one of these loops at import without caching it (about 1-3 s per
+# process); these are the same loops, with the same arithmetic in the same order (float64, as
+# librosa's float64 kernels run for a float32 envelope with a float64 tempo), compiled once.
+
+
+@numba.njit(cache=True, nogil=True)
+def beat_local_score(onsets: np.ndarray, frames_per_beat: float) -> np.ndarray:
+    """The onsets smoothed by a Gaussian of ±``frames_per_beat`` frames (σ = 1/32 of it), as a
+    same-size convolution whose last tap (at offset + K // 2) is left out, as librosa's is."""
+    n = onsets.shape[0]
+    window = np.exp(
+        -0.5 * (np.arange(-frames_per_beat, frames_per_beat + 1) * 32.0 / frames_per_beat) ** 2
+    )
+    taps = window.shape[0]
+    half = taps // 2
+    score = np.empty(n, dtype=np.float64)
+    for i in range(n):
+        score[i] = 0.0
+        for k in range(max(0, i + half - n + 1), min(i + half, taps)):
+            score[i] += window[k] * onsets[i + half - k]
+    return score
+
+
+@numba.njit(cache=True, nogil=True)
+def beat_track_dp(
+    localscore: np.ndarray, frames_per_beat: float, tightness: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(backlink int32, cumulative score float64): each frame's best predecessor beat between
+    2 and 1/2 beat periods back, scored by the log-period deviation squared × ``tightness``."""
+    n = localscore.shape[0]
+    backlink = np.empty(n, dtype=np.int32)
+    cumscore = np.empty(n, dtype=np.float64)
+    score_thresh = 0.01 * localscore.max()
+    first_beat = True
+    backlink[0] = -1
+    cumscore[0] = localscore[0]
+    log_period = np.log(frames_per_beat)
+    nearest = int(np.round(frames_per_beat / 2))
+    farthest = int(2 * frames_per_beat)
+    for i in range(n):
+        score_i = localscore[i]
+        best_score = -np.inf
+        beat_location = -1
+        for loc in range(i - nearest, i - farthest - 1, -1):
+            if loc < 0:
+                break
+            score = cumscore[loc] - tightness * (np.log(i - loc) - log_period) ** 2
+            if score > best_score:
+                best_score = score
+                beat_location = loc
+        if beat_location >= 0:
+            cumscore[i] = score_i + best_score
+        else:
+            cumscore[i] = score_i
+        if first_beat and score_i < score_thresh:
+            backlink[i] = -1
+        else:
+            backlink[i] = beat_location
+            first_beat = False
+    return backlink, cumscore
+
+
+@numba.njit(cache=True, nogil=True)
+def beat_backtrack_and_trim(
+    localscore: np.ndarray, backlink: np.ndarray, tail: int, trim: bool
+) -> np.ndarray:
+    """Beats (bool per frame) from following the backlinks from ``tail``, without the leading
+    and trailing frames whose local score is at most half the RMS of the beats' local score
+    smoothed by a 5-point Hann window (only those scoring 0 when not ``trim``)."""
+    n = localscore.shape[0]
+    beats = np.zeros(n, dtype=np.bool_)
+    frame = tail
+    while frame >= 0:
+        beats[frame] = True
+        frame = backlink[frame]
+    window = np.hanning(5)
+    half = window.shape[0] // 2
+    smooth = np.convolve(localscore[beats], window)[half : n + half]
+    threshold = 0.5 * ((smooth**2).mean() ** 0.5) if trim else 0.0
+    frame = 0
+    while frame < n and localscore[frame] <= threshold:
+        beats[frame] = False
+        frame += 1
+    frame = n - 1
+    while frame >= 0 and localscore[frame] <= threshold:
+        beats[frame] = False
+        frame -= 1
+    return beats
+
+
+@numba.njit(cache=True, nogil=True)
+def softmask_square(x: np.ndarray, ref: np.ndarray, split_zeros: bool, tiny: float) -> np.ndarray:
+    """``librosa.util.softmask(x, ref, power=2, split_zeros=split_zeros)`` of two 2-d arrays of
+    one float dtype, in one pass: with z = max(x, ref), (x/z)² / ((x/z)² + (ref/z)²), and 0.5
+    (``split_zeros``) or 0 where z < ``tiny`` (the dtype's smallest normal number). The same
+    operations in the same order and dtype as librosa's, without its six temporaries."""
+    rows, cols = x.shape
+    out = np.empty_like(x)
+    zero = 0.5 if split_zeros else 0.0
+    for i in range(rows):
+        for j in range(cols):
+            a = x[i, j]
+            b = ref[i, j]
+            z = max(a, b)
+            if z < tiny:
+                out[i, j] = zero
+            else:
+                a = a / z
+                b = b / z
+                a = a * a
+                out[i, j] = a / (a + b * b)
+    return out

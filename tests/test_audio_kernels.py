@@ -1,0 +1,107 @@
+"""The compiled audio kernels (:mod:`dancedata.compute.jit_kernels`) against the library code
+they stand in for, called directly: librosa.beat.beat_track, librosa.util.softmask, and the
+per-bin median of gathered frames by np.partition. Each must give the very same values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dancedata.compute.audio_features import AudioFeatureConfig, beat_frames, onset_envelope
+from dancedata.compute.jit_kernels import neighbour_median
+from dancedata.compute.stems.offline import repetition_background, softmask
+from dancedata.synth.music import synth_dance_music
+
+CFG = AudioFeatureConfig()
+
+
+def _envelopes() -> list[np.ndarray]:
+    rng = np.random.default_rng(7)
+    envs = []
+    for seed, bpm in enumerate((84.0, 120.0, 151.0)):
+        env = onset_envelope(synth_dance_music(bpm, 8.0, sr=CFG.sr, seed=seed), CFG)
+        envs += [env, env * rng.random(env.shape).astype(np.float32)]
+    envs.append(rng.random(700).astype(np.float32))
+    return envs
+
+
+@pytest.mark.parametrize("bpm", [None, 72.0, 120.0, 190.0])
+def test_beat_frames_are_librosas_beat_track(bpm) -> None:
+    import librosa.beat
+
+    kwargs = {"start_bpm": bpm} if bpm else {}
+    for env in _envelopes():
+        _, want = librosa.beat.beat_track(
+            onset_envelope=env,
+            sr=CFG.sr,
+            hop_length=CFG.hop_length,
+            tightness=CFG.beat_tightness,
+            units="frames",
+            **kwargs,
+        )
+        np.testing.assert_array_equal(beat_frames(env, bpm, CFG), want)
+
+
+def test_beat_frames_of_a_silent_envelope_are_none() -> None:
+    assert beat_frames(np.zeros(300, np.float32), 120.0, CFG).size == 0
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("split_zeros", [True, False])
+def test_softmask_is_librosas(dtype, split_zeros) -> None:
+    import librosa
+
+    rng = np.random.default_rng(3)
+    x = (rng.random((64, 90)) ** 3).astype(dtype)
+    ref = (rng.random((64, 90)) ** 3).astype(dtype)
+    x[:4], ref[:4] = 0, 0  # both zero: the split value
+    ref[4:8] = 0
+    x[8:12] = 0
+    x[12, :3] = ref[12, :3] = np.finfo(dtype).tiny / 4  # subnormal: below tiny, split too
+    want = librosa.util.softmask(x, ref, power=2, split_zeros=split_zeros)
+    got = softmask(x, ref, split_zeros)
+    assert got.dtype == want.dtype
+    np.testing.assert_array_equal(got, want)
+
+
+def test_softmask_refuses_negative_input() -> None:
+    with pytest.raises(ValueError, match="non-negative"):
+        softmask(-np.ones((2, 2)), np.ones((2, 2)), True)
+
+
+def test_neighbour_median_is_the_partition_median_with_ties() -> None:
+    rng = np.random.default_rng(5)
+    frames = rng.integers(0, 4, size=(50, 33)).astype(np.float32)  # many ties
+    nearest = rng.integers(0, 50, size=(20, 9))
+    out = np.full_like(frames, np.nan)
+    neighbour_median(frames, nearest, out, 10)
+    want = np.partition(frames[nearest], 4, axis=1)[:, 4, :]
+    np.testing.assert_array_equal(out[10:30], want)
+    assert np.isnan(out[:10]).all() and np.isnan(out[30:]).all()
+
+
+def test_repetition_background_is_the_brute_force_median_of_the_nearest_frames() -> None:
+    rng = np.random.default_rng(11)
+    mag = (rng.random((40, 120)) ** 2).astype(np.float32)
+    width, k = 5, 7
+    got = repetition_background(mag, width, neighbours=k, block=16)
+    unit = mag / np.linalg.norm(mag, axis=0)
+    for frame in range(mag.shape[1]):
+        sim = unit[:, frame] @ unit
+        sim[np.abs(np.arange(mag.shape[1]) - frame) < width] = -np.inf
+        nearest = np.argsort(-sim, kind="stable")[:k]
+        np.testing.assert_array_equal(got[:, frame], np.median(mag[:, nearest], axis=1))
+
+
+def test_offline_stems_from_a_shared_stft_are_the_stems_from_the_signal() -> None:
+    import librosa
+
+    from dancedata.compute.stems import separate
+
+    y = synth_dance_music(110.0, 3.0, sr=CFG.sr, seed=4)
+    spec = librosa.stft(y, n_fft=2048, hop_length=512)
+    shared, own = separate(y, CFG.sr, stft=spec), separate(y, CFG.sr)
+    for name in own:
+        np.testing.assert_array_equal(shared[name], own[name])
+    with pytest.raises(ValueError, match="shared STFT has shape"):
+        separate(y, CFG.sr, stft=spec[:, :-1])

@@ -1,0 +1,88 @@
+"""Every array of the default audio set equals the reference outputs of the code before the
+audio speed-up (``tests/data/audio_reference/reference.npz``, see its ``make_reference.py``), on
+the real Vibe Ace recording and on three synthetic tracks decoded from WAV files.
+
+Tolerances, per array (:data:`TOLERANCE`, absolute, on the arrays as stored):
+
+* one-hot arrays (``onset_peaks``, ``beats``, ``stems/*/onset_peaks``): identical.
+* everything else: the speed-up only reuses intermediate results that the old code computed
+  twice (one STFT of the mix for the FACT features, the tuning estimate and the stems; one |STFT|
+  of the drums stem for its features and its NMFD), replaces a sort by a compiled selection that
+  picks the very same value, and writes NMFD's intermediate products into reused buffers. None
+  of that changes a rounding, so the outputs are expected to be bit-identical. The test allows
+  float32 rounding of the stored values (4 ulp of each array's largest magnitude), so that a
+  BLAS build that orders a product's sums differently is not an error; anything above that is.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.data.audio_reference import make_reference as ref
+
+REFERENCE = Path(__file__).resolve().parent / "data" / "audio_reference" / "reference.npz"
+EXACT = ("onset_peaks", "beats")
+ULPS = 4
+
+
+def stored() -> dict[str, dict[str, np.ndarray]]:
+    by_track: dict[str, dict[str, np.ndarray]] = {}
+    with np.load(REFERENCE) as data:
+        for key in data.files:
+            track, name = key.split("/", 1)
+            by_track.setdefault(track, {})[name] = data[key]
+    return by_track
+
+
+def tolerance(name: str, expected: np.ndarray) -> float:
+    """Absolute tolerance of array ``name``: 0 for one-hot arrays, else 4 float32 ulp of its
+    largest magnitude."""
+    if name.split("/")[-1] in EXACT:
+        return 0.0
+    scale = float(np.max(np.abs(expected))) if expected.size else 0.0
+    return ULPS * float(np.spacing(np.float32(scale)))
+
+
+def compare(track: str, path: Path) -> dict[str, float]:
+    """Max |today − reference| per array of ``track``; asserts every one is within tolerance."""
+    expected = stored()[track]
+    bpm = float(expected["_bpm"])
+    actual = ref.features(path, None if np.isnan(bpm) else bpm)
+    names = sorted(k for k in expected if not k.startswith("_"))
+    assert sorted(actual) == names
+    deviations: dict[str, float] = {}
+    for name in names:
+        want, got = expected[name], np.asarray(actual[name])
+        assert got.shape == want.shape, name
+        assert got.dtype == want.dtype, name
+        deviation = float(np.max(np.abs(got.astype(np.float64) - want))) if want.size else 0.0
+        deviations[name] = deviation
+        assert deviation <= tolerance(name, want), (name, deviation, tolerance(name, want))
+    return deviations
+
+
+@pytest.mark.parametrize("track", ["synth_a", "synth_b", "synth_c"])
+def test_default_audio_set_of_a_synthetic_track_equals_the_reference(track, tmp_path) -> None:
+    deviations = compare(track, ref.write_synth(tmp_path, track))
+    assert len(deviations) == 5 + 12 + 1
+
+
+@pytest.mark.real_data
+def test_default_audio_set_of_vibe_ace_equals_the_reference(real_data) -> None:
+    path = real_data / "audio" / ref.VIBE_ACE
+    assert ref.sha256(path) == str(stored()["vibe_ace"]["_sha256"])
+    deviations = compare("vibe_ace", path)
+    assert deviations["beats"] == 0.0 and deviations["onset_peaks"] == 0.0
+
+
+def test_reference_file_is_small_and_complete() -> None:
+    assert REFERENCE.stat().st_size < 4_000_000
+    tracks = stored()
+    assert set(tracks) == set(ref.TRACKS)
+    assert os.path.basename(ref.OUT) == REFERENCE.name
+    for arrays in tracks.values():
+        assert int(arrays["beats"].sum()) > 5 and int(arrays["onset_peaks"].sum()) > 5
