@@ -7,8 +7,8 @@ is handled per sequence by the caller, which knows where sequences start and sto
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from dancedata.compute.rotation_kernels import rotations_from_axis_angle
 from dancedata.compute.rotations import (
     ROT6D_LAYOUT,
     ROT6D_ROWS_LAYOUT,
@@ -70,33 +70,35 @@ def representations_from_axis_angle(
     Quaternions come out with w ≥ 0 per frame; make them continuous with
     :func:`continue_quat_signs`.
     """
-    # One scipy Rotation serves every output: building it from a matrix again (from_matrix
-    # re-orthogonalises) costs about three times the rest together.
-    values = np.asarray(axis_angle, dtype=np.float64)
+    # One compiled pass (compute.rotation_kernels: scipy's formulas, per rotation) gives the
+    # quaternions, matrices and Euler angles; the 6D layouts are slices of the matrices.
+    values = np.asarray(axis_angle)
+    if values.dtype not in (np.float32, np.float64):
+        values = values.astype(np.float64)
+    unknown = [n for n in names if n not in KNOWN_REPRESENTATIONS]
+    if unknown:
+        raise ValueError(f"unknown representation {unknown[0]!r}; known: {KNOWN_REPRESENTATIONS}")
     lead = values.shape[:-1]
-    rotation = Rotation.from_rotvec(values.reshape(-1, 3))
-    per_joint_orders = not isinstance(euler_order, str)
-    rotmat = None
-    if {"rotmat", "rot6d", "rot6d_rows"} & set(names) or ("euler" in names and per_joint_orders):
-        rotmat = rotation.as_matrix().reshape(lead + (3, 3))
+    flat = values.reshape(-1, 1, 3) if values.ndim != 3 else values
+    wanted = set(names)
+    computed = rotations_from_axis_angle(
+        flat,
+        quat="quat" in wanted,
+        rotmat=bool({"rotmat", "rot6d", "rot6d_rows"} & wanted),
+        euler_order=euler_order if "euler" in wanted else None,
+    )
     out: dict[str, np.ndarray] = {}
     for name in names:
         if name == "rotmat":
-            out[name] = rotmat
+            out[name] = computed["rotmat"].reshape(lead + (3, 3))
         elif name == "euler":
-            out[name] = (
-                euler_per_joint(rotmat, euler_order)
-                if per_joint_orders
-                else rotation.as_euler(euler_order).reshape(lead + (3,))
-            )
+            out[name] = computed["euler"].reshape(lead + (3,))
         elif name == "quat":
-            out[name] = rotation.as_quat(canonical=True)[:, [3, 0, 1, 2]].reshape(lead + (4,))
+            out[name] = computed["quat"].reshape(lead + (4,))
         elif name == "rot6d":
-            out[name] = rotmat_to_rot6d(rotmat)
-        elif name == "rot6d_rows":
-            out[name] = rotmat_to_rot6d_rows(rotmat)
+            out[name] = rotmat_to_rot6d(computed["rotmat"]).reshape(lead + (6,))
         else:
-            raise ValueError(f"unknown representation {name!r}; known: {KNOWN_REPRESENTATIONS}")
+            out[name] = rotmat_to_rot6d_rows(computed["rotmat"]).reshape(lead + (6,))
     return out
 
 

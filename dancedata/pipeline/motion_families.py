@@ -21,11 +21,11 @@ import numpy as np
 
 from dancedata.compute.motion_representations import (
     KNOWN_REPRESENTATIONS,
-    continue_quat_signs,
     representation_attrs,
     representations_from_axis_angle,
     row_shape,
 )
+from dancedata.compute.rotation_kernels import quat_sign_continuous_spans
 from dancedata.pipeline.family import register_family, registered
 from dancedata.pipeline.motion_family_base import (
     BASE_ARRAYS,
@@ -102,10 +102,8 @@ class RotationsFamily(MotionFamily):
         )
         if "euler" in reps and _source_euler_fits(batch, settings):
             reps["euler"] = batch.arrays["euler"]
-        if "quat" in reps:
-            quat = reps["quat"]
-            for part in batch.sequences():
-                quat[part] = continue_quat_signs(quat[part], None)
+        if "quat" in reps:  # sign-continuous within each sequence, in one compiled pass
+            reps["quat"] = quat_sign_continuous_spans(reps["quat"], batch.bounds)
         return reps
 
     def config(self, settings: MotionSettings) -> dict[str, Any]:
