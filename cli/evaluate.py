@@ -33,7 +33,8 @@ def evaluate_command(
         str | None,
         typer.Option(
             help="SMPL model file: joint positions by forward kinematics (default "
-            "$DANCEDATA_SMPL_MODEL). Without it positions are read from the files / store."
+            "$DANCEDATA_SMPL_MODEL). Without it SMPL-24 stores use the built-in "
+            "edge_smpl_offsets skeleton (root at trans, betas 0); recorded as config.skeleton."
         ),
     ] = None,
     out: Annotated[

@@ -146,3 +146,66 @@ def test_featurize_positions_without_a_model_on_a_real_aist_store(
         worst = max(worst, float(np.abs(stored - brute_force_positions(aa32, tr32)).max()))
     print(f"featurize positions vs independent FK on real AIST++: max {worst:.3g} m")
     assert worst <= 1e-5, worst
+
+
+# ------------------------------------------------------------------ evaluate without a model
+
+
+@pytest.fixture(scope="module")
+def synthetic_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("skeleton-evaluate")
+    run_cli("synth", "aist", str(root / "raw"), "--sequences", "4", "--seed", "0", "-q")
+    run_cli("ingest", "aist", str(root / "raw"), "--store", str(root / "st"), "-q")
+    return root / "st"
+
+
+def test_evaluate_without_a_model_poses_ground_truth_about_the_builtin_skeleton(
+    synthetic_store: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Generated = the independent FK's joint positions of the ground truth: FID_k and FID_g
+    are 0, so evaluate's ground truth is that skeleton's FK. Every positions metric and the
+    record name the skeleton; a model file, when given, replaces it (sha256 recorded)."""
+    import hashlib
+    import json
+
+    import pyarrow.parquet as pq
+
+    import dancedata
+    from tests.test_motion_families import write_npz_model
+
+    monkeypatch.delenv("DANCEDATA_SMPL_MODEL", raising=False)
+    store = dancedata.open_store(synthetic_store)
+    gen = tmp_path / "gen"
+    gen.mkdir()
+    for seq in store.seq_ids(split="train"):
+        aa = store.motion(seq, "axis_angle").astype(np.float64)
+        trans = store.motion(seq, "trans").astype(np.float64)
+        np.save(gen / f"{seq}.npy", brute_force_positions(aa, trans))
+    out = tmp_path / "res"
+    run_cli("evaluate", str(synthetic_store), "--generated", str(gen), "--split", "train",
+            "--out", str(out), "-q")  # fmt: skip
+    record = json.loads((out / "results.json").read_text())
+    assert record["config"]["skeleton"]["skeleton"] == "edge_smpl_offsets"
+    assert record["config"]["smpl_model"] is None
+    by_metric = {r["metric"]: r for r in record["results"]}
+    # 0 within the accuracy of sqrtm on a singular few-unit covariance (as test_evaluate's own
+    # ground truth against itself)
+    assert abs(by_metric["fid_k"]["value"]) < 1e-4 and abs(by_metric["fid_g"]["value"]) < 1e-4
+    assert by_metric["div_k"]["value"] == pytest.approx(by_metric["div_k_gt"]["value"], rel=1e-9)
+    variants = {
+        row["metric"]: json.loads(row["variant"])
+        for row in pq.read_table(out / "results.parquet").to_pylist()
+    }
+    for metric in ("fid_k", "fid_g", "div_k", "div_g"):
+        assert variants[metric]["skeleton"] == "edge_smpl_offsets", metric
+    assert "skeleton" not in variants.get("fpd", {})  # rotations only: no skeleton involved
+
+    model = write_npz_model(tmp_path / "smpl.npz")
+    run_cli("evaluate", str(synthetic_store), "--generated", str(synthetic_store), "--split",
+            "train", "--smpl-model", str(model), "--out", str(tmp_path / "m"), "-q")  # fmt: skip
+    record = json.loads((tmp_path / "m" / "results.json").read_text())
+    sha = hashlib.sha256(model.read_bytes()).hexdigest()
+    assert record["config"]["skeleton"]["skeleton"] == f"sha256:{sha}"
+    assert record["config"]["smpl_model"] == {"file": "smpl.npz", "sha256": sha}
+    fid_k = next(r for r in record["results"] if r["metric"] == "fid_k")
+    assert fid_k["convention"]["skeleton"] == f"sha256:{sha}"
