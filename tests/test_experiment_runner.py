@@ -5,7 +5,8 @@ synthetic sequences; its crossmodal scheme has no test/val sequences, so the run
 train split (``--set split.eval=train``). Checks: every shipped config runs and fills every
 class D/S cell of its tables; even + linear_slerp MSE equals a direct call of the
 in-betweening + MSE functions and a scipy ``Slerp`` loop; without an SMPL model FID cells use
-the built-in edge_smpl_offsets skeleton and name it; class M rows fill from --generated outputs; the record and the run id name everything.
+the built-in edge_smpl_offsets skeleton and name it; class M rows fill from --generated
+outputs; the record and the run id name everything.
 """
 
 from __future__ import annotations
