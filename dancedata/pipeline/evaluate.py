@@ -117,13 +117,34 @@ class EvaluateSummary:
                 )
         return "\n".join(lines)
 
+    def convention_row(self) -> str | None:
+        """With a named convention (``params.convention``): its name, what it means, and the
+        paper's row of metrics in the paper's order ("—" where a metric has no value)."""
+        name = self.record["config"]["params"].get("convention")
+        if not name:
+            return None
+        from dancedata.experiments.evaluate_conventions import convention_named
+
+        preset = convention_named(name)
+        values = {r["metric"]: r["value"] for r in self.record["results"]}
+        cells = [
+            f"{header} {'—' if values.get(metric) is None else format(values[metric], '.4g')}"
+            for metric, header in preset.row
+        ]
+        skeleton = (self.record["config"].get("skeleton") or {}).get("skeleton")
+        return (
+            f"convention {preset.name}: {preset.summary}; skeleton {skeleton}\n"
+            f"{preset.name} row: " + "  ".join(cells)
+        )
+
     def message(self, command: str) -> str:
         head = (
             f"{command}: {self.record['store_version']} {self.record['split']}, "
             f"{self.record['n_scored']} of {self.record['n_sequences']} sequences scored; "
             f"record in {self.out}"
         )
-        return head + "\n" + self.table()
+        row = self.convention_row()
+        return head + "\n" + self.table() + ("" if row is None else "\n" + row)
 
 
 # ------------------------------------------------------------------------- reading each side
