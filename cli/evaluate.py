@@ -13,6 +13,7 @@ from dancedata.cli.main import app
 
 @app.command("evaluate")
 def evaluate_command(
+    ctx: typer.Context,
     store: Annotated[str, typer.Argument(help="Store directory (ground truth).")],
     generated: Annotated[
         str,
@@ -33,7 +34,8 @@ def evaluate_command(
         str | None,
         typer.Option(
             help="SMPL model file: joint positions by forward kinematics (default "
-            "$DANCEDATA_SMPL_MODEL). Without it positions are read from the files / store."
+            "$DANCEDATA_SMPL_MODEL). Without it SMPL-24 stores use the built-in "
+            "edge_smpl_offsets skeleton (root at trans, betas 0); recorded as config.skeleton."
         ),
     ] = None,
     out: Annotated[
@@ -104,6 +106,22 @@ def evaluate_command(
             min=3, help="Compare at most this many frames after --skip-frames (Bailando: 1200)."
         ),
     ] = None,
+    feature_max_frames: Annotated[
+        int | None,
+        typer.Option(
+            min=3,
+            help="FID / diversity on each sequence's first N compared frames only; beat scores "
+            "and MSE keep every frame (Bailando: 1200).",
+        ),
+    ] = None,
+    convention: Annotated[
+        str | None,
+        typer.Option(
+            help="A paper's evaluation preset, named in the record and the output: bailando "
+            "(FID/Div on the first 1200 frames, root-relative, against all ground truth; BAS on "
+            "whole sequences). Options given explicitly still win."
+        ),
+    ] = None,
     fid_root_relative: Annotated[
         bool,
         typer.Option(
@@ -144,15 +162,19 @@ def evaluate_command(
     FPD / FMD, each with its convention. Prints a table and writes results.json and
     results.parquet. Sequences that cannot be scored are listed with their reason (stderr and
     the record). Exit 0 when the record is written; 1 on a bad store, split or folder, when no
-    sequence can be scored, or with --strict when any sequence was not scored."""
+    sequence can be scored, or with --strict when any sequence was not scored.
+
+    Example (one Bailando table row): dancedata evaluate data/stores/aist --generated out/
+    --convention bailando"""
     setup(quiet)
     from pathlib import Path
 
     from dancedata.experiments.evaluate import EvaluateParams
+    from dancedata.experiments.evaluate_conventions import convention_named
     from dancedata.pipeline.evaluate import EvaluateOptions
     from dancedata.pipeline.evaluate import evaluate as run
 
-    params = EvaluateParams(
+    values = dict(
         mse_space=mse_space,
         mse_wrap=mse_wrap,
         mse_reduce=mse_reduce,
@@ -171,7 +193,17 @@ def evaluate_command(
         skip_frames=skip_frames,
         max_frames=max_frames,
         fid_root_relative=fid_root_relative,
+        feature_max_frames=feature_max_frames,
     )
+    if convention is not None:
+        preset = convention_named(convention)
+        for key, value in preset.params.items():
+            source = ctx.get_parameter_source(key) if key in values else None
+            given = source is not None and source.name in ("COMMANDLINE", "ENVIRONMENT")
+            if not given:
+                values[key] = value
+        values["convention"] = preset.name
+    params = EvaluateParams(**values)
     options = EvaluateOptions(
         generated=Path(generated),
         split=split,

@@ -47,7 +47,10 @@ def run_command(
     ] = [],  # noqa: B006
     smpl_model: Annotated[
         Path | None,
-        typer.Option(help="SMPL model file for FID (default: metrics.smpl_model of the config)."),
+        typer.Option(
+            help="SMPL model file for FID (default: metrics.smpl_model of the config, else the "
+            "built-in edge_smpl_offsets skeleton)."
+        ),
     ] = None,
     set_values: Annotated[
         list[str],

@@ -53,9 +53,10 @@ def featurize(
     motion_families: Annotated[
         str,
         typer.Option(
-            help="Motion families, comma-separated: rotations; positions (FK; SMPL stores need "
-            "--smpl-model); kinematics (velocity, acceleration, jerk, motion beats, kinetic "
-            "features, from positions); angular (angular velocity, weight effort); "
+            help="Motion families, comma-separated: rotations; positions (FK; SMPL stores: "
+            "--smpl-model, else the built-in edge_smpl_offsets skeleton); kinematics (velocity, "
+            "acceleration, jerk, motion beats, kinetic features, from positions); angular "
+            "(angular velocity, weight effort); "
             "angular_derivatives (angular acceleration and jerk, per joint and summed); laban "
             "(Laban Time, Space and Flow efforts from positions, 1 s windows); geometric "
             "(SMPL-24 only); rotations_from_positions (joint rotations solved from positions, "

@@ -4,8 +4,9 @@ The store is built by the real pipeline (synth aist → ingest → featurize →
 synthetic sequences; its crossmodal scheme has no test/val sequences, so the runs evaluate the
 train split (``--set split.eval=train``). Checks: every shipped config runs and fills every
 class D/S cell of its tables; even + linear_slerp MSE equals a direct call of the
-in-betweening + MSE functions and a scipy ``Slerp`` loop; FID cells need an SMPL model and say
-so; class M rows fill from --generated outputs; the record and the run id name everything.
+in-betweening + MSE functions and a scipy ``Slerp`` loop; without an SMPL model FID cells use
+the built-in edge_smpl_offsets skeleton and name it; class M rows fill from --generated
+outputs; the record and the run id name everything.
 """
 
 from __future__ import annotations
@@ -107,18 +108,32 @@ def test_every_shipped_config_fills_its_data_and_statistics_cells(
             assert by_n[3] > by_n[5] > by_n[9] > 0, (metric, by_n)
 
 
-def test_without_an_smpl_model_fid_cells_say_why(store: Path, tmp_path: Path, monkeypatch) -> None:
+def test_without_an_smpl_model_fid_cells_use_the_builtin_skeleton(
+    store: Path, smpl_npz: Path, tmp_path: Path, monkeypatch
+) -> None:
+    """No model file: every FID cell of Tables 4.1 / 4.2 is filled from edge_smpl_offsets
+    positions, each FID row and the record name that skeleton; a model file, when given, wins
+    (its sha256 in the variant) and changes the run id."""
+    import hashlib
+
     from dancedata.experiments.tables import build, load_results
 
     monkeypatch.delenv("DANCEDATA_SMPL_MODEL", raising=False)
-    run(REPO / "experiments" / "thesis-verification.toml", store, tmp_path / "out")
+    config = REPO / "experiments" / "thesis-verification.toml"
+    builtin = run(config, store, tmp_path / "out")
     rows, skipped = load_results([tmp_path / "out"])
-    assert {r["metric"] for r in rows} == {"mse"}
-    fid_g = build("4.1", rows, skipped)
-    notes = {c.note for line in fid_g.cells for c in line}
-    assert len(notes) == 1 and notes.pop().startswith("no SMPL model: FID needs SMPL-24 joint")
-    mse_table = build("4.3", rows, skipped)
-    assert all(c.value is not None for line in mse_table.cells for c in line)
+    assert {r["metric"] for r in rows} == {"mse", "fid_g", "fid_k"}
+    for table_id in ("4.1", "4.2", "4.3"):
+        table = build(table_id, rows, skipped)
+        assert all(c.value is not None for line in table.cells for c in line), table_id
+    fid_rows = [r for r in rows if r["metric"].startswith("fid")]
+    assert {json.loads(r["variant"])["skeleton"] for r in fid_rows} == {"edge_smpl_offsets"}
+    assert builtin.record["conventions"]["skeleton"]["skeleton"] == "edge_smpl_offsets"
+    with_model = run(config, store, tmp_path / "model", smpl_model=smpl_npz)
+    sha = hashlib.sha256(smpl_npz.read_bytes()).hexdigest()
+    model_rows = [r for r in with_model.rows if r["metric"].startswith("fid")]
+    assert {json.loads(r["variant"])["skeleton"] for r in model_rows} == {f"sha256:{sha}"}
+    assert with_model.record["run_id"] != builtin.record["run_id"]
 
 
 # ---------------------------------------------------------------- independent MSE check

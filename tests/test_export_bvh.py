@@ -115,10 +115,16 @@ def test_smpl_store_exports_a_generated_layout(tmp_path: Path) -> None:
     expected = reference_smpl_positions(smpl_parts(), axis_angle, trans)
     assert np.abs(world_positions(clip)[:, idx] / 100.0 - expected).max() < 1e-6
 
-    # Without a model: the approximate rest skeleton, said so.
-    summary = cli("export", "bvh", str(store), seq["seq_id"], str(tmp_path / "approx.bvh"))
-    assert "approximate" in summary["offsets_from"]
-    assert read_bvh(tmp_path / "approx.bvh").n_frames == f1 - f0
+    # Without a model: the built-in edge_smpl_offsets skeleton, named; the file's joints are
+    # that skeleton's forward kinematics (root at the translation).
+    from dancedata.smpl_skeletons import smpl_skeleton
+
+    summary = cli("export", "bvh", str(store), seq["seq_id"], str(tmp_path / "edge.bvh"))
+    assert summary["offsets_from"].startswith("edge_smpl_offsets")
+    builtin = read_bvh(tmp_path / "edge.bvh")
+    assert builtin.n_frames == f1 - f0
+    expected = smpl_skeleton(None).positions(axis_angle, trans)
+    assert np.abs(world_positions(builtin)[:, idx] / 100.0 - expected).max() < 1e-6
 
 
 def test_export_errors_are_clear(tmp_path: Path) -> None:

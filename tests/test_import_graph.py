@@ -66,6 +66,8 @@ LAYER_OF: dict[str, tuple[str, str]] = {
     "dancedata.safe_pickle": ("io", "the restricted unpickler that io's model readers use"),
     "dancedata.compute": ("compute", "pure array-in, array-out functions"),
     "dancedata.smpl": ("compute", "SMPL-24 joint names and parents: constant tables"),
+    "dancedata.smpl_skeletons": ("compute", "picks an SMPL model file (io) or the built-in rest "
+    "skeleton (compute) for joint positions"),
     "dancedata.bvh_ops": ("compute", "operations on a parsed BVH clip: io.bvh + compute arrays"),
     "dancedata.aist_names": ("compute", "AIST++ sequence-name parsing: pure string functions"),
     "dancedata.batching": ("compute", "length bucketing of windows: pure index arithmetic"),

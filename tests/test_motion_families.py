@@ -176,9 +176,14 @@ def test_smpl_positions_through_featurize(tmp_path: Path) -> None:
     store = aist_store(tmp_path)
     model = write_npz_model(tmp_path / "smpl.npz")
 
-    # Without a model: one line saying why none is bundled and where to get one.
-    line = one_line_error(featurize_cli(store, "positions", check=False))
-    assert "licence" in line and "smpl.is.tue.mpg.de" in line and "--smpl-model" in line
+    # Without a model: the built-in edge_smpl_offsets skeleton, named in the manifest and attrs
+    # (tests/test_smpl_skeleton.py checks its numbers).
+    featurize_cli(store, "positions")
+    reader = VersionReader(store)
+    config = reader.manifest["config"]["motion_families"]["positions"]
+    assert config["skeleton"] == "edge_smpl_offsets" and config["smpl_model"] is None
+    assert reader.array("motion/positions").attrs["smpl_skeleton"] == "edge_smpl_offsets"
+    builtin_fingerprint = reader.manifest["fingerprint"]
 
     featurize_cli(store, "positions,angular", "--smpl-model", str(model))
     reader = VersionReader(store)
@@ -189,6 +194,8 @@ def test_smpl_positions_through_featurize(tmp_path: Path) -> None:
     assert np.abs(positions - expected).max() < 2e-6  # float32 storage of metres
     config = reader.manifest["config"]["motion_families"]["positions"]
     assert config["smpl_model"]["file"] == "smpl.npz" and len(config["smpl_model"]["sha256"]) == 64
+    assert config["skeleton"] == f"sha256:{config['smpl_model']['sha256']}"  # the model wins
+    assert reader.manifest["fingerprint"] != builtin_fingerprint
 
     # Positions now exist: kinematics and geometric run on this version's output.
     featurize(store, "kinematics,geometric")

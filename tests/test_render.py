@@ -250,10 +250,17 @@ def test_smpl_joints_with_a_model_file(aist_store: Path, tmp_path: Path) -> None
     run_cli("render", str(aist_store), seq, str(out), "--smpl-model", str(model),
             "--start", "0", "--stop", "30", "-q")  # fmt: skip
     assert len(decode(out)["frames"]) == 30
-    # Without the model, the SMPL source says what it needs.
-    proc = run_cli("render", str(aist_store), seq, str(out), "--source", "smpl", "-q",
-                   check=False)  # fmt: skip
-    assert proc.returncode == 1 and "--smpl-model" in proc.stderr
+    # Without the model, the SMPL source draws the built-in edge_smpl_offsets skeleton, named
+    # in the panel's label (its numbers: tests/test_smpl_skeleton.py).
+    from dancedata.smpl_skeletons import smpl_skeleton
+
+    builtin = load_skeleton(ds, seq, source="smpl")
+    assert builtin.source == "smpl" and "edge_smpl_offsets" in builtin.label
+    want = smpl_skeleton(None).positions(ds.motion(seq, "axis_angle"), ds.motion(seq, "trans"))
+    np.testing.assert_allclose(builtin.positions, want, atol=1e-6)
+    run_cli("render", str(aist_store), seq, str(out), "--source", "smpl", "--start", "0",
+            "--stop", "10", "-q")  # fmt: skip
+    assert len(decode(out)["frames"]) == 10
 
 
 # ----------------------------------------------------------------------------- BVH store
@@ -404,5 +411,7 @@ def test_generated_fact_rows_and_smpl_pickles_match_the_stored_motion(
         got = load_generated(tmp_path / name, seq, truth, smpl_model=model)
         assert got.parents == truth.parents and got.fps == truth.fps
         np.testing.assert_allclose(got.positions, truth.positions, atol=2e-4)
-    with pytest.raises(dancedata.errors.InputError, match="needs --smpl-model"):
-        load_generated(tmp_path / "fact.npy", seq, truth)
+    # Without a model: posed about edge_smpl_offsets, like the store's own "smpl" source.
+    builtin = load_skeleton(ds, seq, source="smpl")
+    got = load_generated(tmp_path / "fact.npy", seq, builtin)
+    np.testing.assert_allclose(got.positions, builtin.positions, atol=2e-4)

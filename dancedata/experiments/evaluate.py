@@ -104,6 +104,11 @@ class EvaluateParams:
     max_frames: int | None = None
     length: str = "common_min"
     fid_root_relative: bool = False
+    # FID / diversity on each sequence's first N compared frames only (Bailando: 1200), while
+    # the beat scores and MSE use every compared frame; None: no extra cut.
+    feature_max_frames: int | None = None
+    # The named preset the other fields were set from (``evaluate --convention``), or None.
+    convention: str | None = None
 
     def __post_init__(self) -> None:
         allowed = {
@@ -127,6 +132,10 @@ class EvaluateParams:
             raise InputError("mse_wrap applies to Euler spaces only, not to rotmat")
         if self.max_frames is not None and self.max_frames < 3:
             raise InputError(f"max_frames must be at least 3, got {self.max_frames}")
+        if self.feature_max_frames is not None and (
+            self.feature_max_frames < 3 or self.fid_unit != "sequence"
+        ):
+            raise InputError("feature_max_frames must be at least 3 and needs fid_unit sequence")
         if self.skip_frames < 0 or self.beat_tol < 0 or self.fpd_frame_step < 1:
             raise InputError("skip_frames and beat_tol must be ≥ 0, fpd_frame_step ≥ 1")
         step = self.fps / self.msd_fps if self.msd_fps > 0 else 0.0
@@ -228,8 +237,14 @@ def _feature_metrics(
     by_measure = p.fid_unit == "measure"
     gen = _units(seqs, "gen_positions", by_measure)
     gt = list(reference) if reference is not None else _units(seqs, "gt_positions", by_measure)
+    if p.feature_max_frames is not None:  # Bailando: the first 1200 frames of each sequence
+        gen = [u[: p.feature_max_frames] for u in gen]
+        if reference is None:  # paired ground truth: the same frames; a reference set stays whole
+            gt = [u[: p.feature_max_frames] for u in gt]
     frames = sum(len(u) for u in gen)
-    unit = {"unit": p.fid_unit, "reference": p.fid_reference}
+    unit: dict[str, Any] = {"unit": p.fid_unit, "reference": p.fid_reference}
+    if p.feature_max_frames is not None:
+        unit["feature_max_frames"] = p.feature_max_frames
     for kind in kinds:
         suffix = kind[0]
         result = fid(

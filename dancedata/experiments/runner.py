@@ -8,11 +8,14 @@ selects keyframes in every complete measure of the eval split, reconstructs the 
   from the config);
 * ``fid_k`` / ``fid_g`` — :func:`dancedata.experiments.metrics.fid` on SMPL-24 joint positions
   of the reconstruction vs the ground truth of the same frames (``fid_reference =
-  paired_gt``), one feature vector per sequence or per measure (``fid_unit``). Positions need
-  an SMPL model file (``metrics.smpl_model``, default ``$DANCEDATA_SMPL_MODEL``).
+  paired_gt``), one feature vector per sequence or per measure (``fid_unit``). Positions are
+  forward kinematics about an SMPL model file's rest joints (``metrics.smpl_model``, default
+  ``$DANCEDATA_SMPL_MODEL``) or, without one, the built-in ``edge_smpl_offsets`` skeleton
+  (:mod:`dancedata.smpl_skeletons`); the skeleton is in every FID row's ``variant`` and in the
+  record's ``conventions.skeleton``, and enters the run id.
 
-Rows whose inputs are missing (no audio / stems / NMFD for a peak strategy, no SMPL model for
-FID, no generated outputs for a ``transformer_*`` row) are skipped with a one-line reason in the
+Rows whose inputs are missing (no audio / stems / NMFD for a peak strategy, fewer than 2 FID
+units, no generated outputs for a ``transformer_*`` row) are skipped with a one-line reason in the
 record; they are never replaced by something else. Class M rows take their in-betweens from
 ``generated`` folders (:mod:`dancedata.experiments.runner_generated`).
 
@@ -164,15 +167,13 @@ def _fid_units(ev: Evaluated, data: SplitData, unit: str) -> np.ndarray:
     return np.concatenate([[0], ev.unit_bounds[change], [ev.unit_bounds[-1]]])
 
 
-def _score_fid(ev: Evaluated, data: SplitData, config: ExperimentConfig, model: Any,
+def _score_fid(ev: Evaluated, data: SplitData, config: ExperimentConfig, skeleton: Any,
                kinds: list[str]) -> dict[str, dict[str, Any]]:  # fmt: skip
-    from dancedata.compute.smpl_joints import smpl_joint_positions
-
     m = config.data["metrics"]
     rec = ev.reconstruction
     assert rec is not None and data.axis_angle is not None
-    fake = smpl_joint_positions(model, rec.axis_angle(), rec.trans)
-    real = smpl_joint_positions(model, data.axis_angle[ev.frame], data.trans[ev.frame])
+    fake = skeleton.positions(rec.axis_angle(), rec.trans)
+    real = skeleton.positions(data.axis_angle[ev.frame], data.trans[ev.frame])
     bounds = _fid_units(ev, data, m["fid_unit"])
     out = {}
     for kind in kinds:
@@ -188,23 +189,19 @@ def _score_fid(ev: Evaluated, data: SplitData, config: ExperimentConfig, model: 
         )
         record = result.as_dict()
         record["convention"].update(unit=m["fid_unit"], reference=m["fid_reference"],
-                                    positions="SMPL-24 FK (metres, y up)")  # fmt: skip
+                                    positions="SMPL-24 FK (metres, y up)",
+                                    skeleton=skeleton.name)  # fmt: skip
         out[kind] = record
     return out
 
 
 def _smpl_model(config: ExperimentConfig, override: str | Path | None) -> tuple[Any, str | None]:
-    """(model, None) or (None, reason the FID metrics cannot run)."""
-    from dancedata.io.smpl_model import cached_smpl_model
+    """(the rest skeleton of the FID positions, None): the model file of ``--smpl-model`` or
+    ``metrics.smpl_model`` when given, else the built-in ``edge_smpl_offsets``."""
+    from dancedata.smpl_skeletons import smpl_skeleton
 
     path = Path(override) if override else config.smpl_model_path()
-    if path is None:
-        return None, (
-            "no SMPL model: FID needs SMPL-24 joint positions of the reconstructions (the "
-            "store's keypoints3d are COCO-17 ground truth only); set metrics.smpl_model, "
-            "--smpl-model or $DANCEDATA_SMPL_MODEL"
-        )
-    return cached_smpl_model(path), None
+    return smpl_skeleton(path), None
 
 
 def run_fingerprint(config: ExperimentConfig, store_fingerprint: str,
@@ -297,7 +294,9 @@ def run_experiment(
             for result in scored.values():
                 out.rows.append(_result_row(row, n, result, config, data, params, stem_backend))
             timings[f"{row.key}@{n}"] = round(time.perf_counter() - t0, 3)
-    run_id = run_fingerprint(config, reader.manifest["fingerprint"], outputs.input_hashes())
+    skeleton_id = [f"skeleton:{model.name}"] if model is not None else []
+    run_id = run_fingerprint(config, reader.manifest["fingerprint"],
+                             [*outputs.input_hashes(), *skeleton_id])  # fmt: skip
     created = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
     for r in out.rows:
         r.update(run_id=run_id, store_version=loader.version, dancedata_version=__version__,
@@ -322,6 +321,7 @@ def run_experiment(
             "keyframes": params.as_dict(),
             "inbetween": config.data["inbetween"],
             "metrics": config.data["metrics"],
+            "skeleton": None if model is None else model.record(),
         },
         "generated": outputs.describe(),
         "skipped": [s.as_dict() for s in out.skipped],

@@ -7,10 +7,14 @@ the same sequences of another dancedata store), puts both sides into the metrics
 per metric), each written under a temporary name and renamed into ``out``.
 
 Assumptions, recorded in the record: generated motion runs at the store's frame rate, frame i
-beside ground-truth frame i, in SMPL's frame (metres, y up). Ground-truth positions come from
-SMPL forward kinematics with ``smpl_model`` (else the store's ``motion/positions``); generated
-positions from forward kinematics of its rotations with ``smpl_model`` (else the positions the
-file holds). Music beats are the store's ``audio/beats`` (librosa ``beat_track``).
+beside ground-truth frame i, in SMPL's frame (metres, y up). On SMPL-24 stores ground-truth
+positions come from forward kinematics of the stored rotations about the run's rest skeleton:
+``smpl_model`` when given, else the built-in ``edge_smpl_offsets``
+(:mod:`dancedata.smpl_skeletons`); generated rotations are posed the same way (a file holding
+positions only is used as it is). The skeleton is recorded in ``config.skeleton`` and in the
+convention of every metric computed from positions. Other stores: ``smpl_model`` if given,
+else the store's ``motion/positions``. Music beats are the store's ``audio/beats`` (librosa
+``beat_track``).
 """
 
 from __future__ import annotations
@@ -49,9 +53,14 @@ from dancedata.io.generated_motion import (
     read_generated_motion,
 )
 from dancedata.loader import DanceStore, open_store
+from dancedata.smpl import SMPL_JOINTS
+from dancedata.smpl_skeletons import smpl_skeleton
 from dancedata.store.checksums import canonical_json, sha256_file
 
 __all__ = ["EvaluateOptions", "EvaluateSummary", "evaluate"]
+
+# Metrics computed from rotations alone (no skeleton); every other one reads joint positions.
+_ROTATION_METRICS = frozenset({"mse", "fpd", "fmd"})
 
 
 @dataclass
@@ -108,13 +117,34 @@ class EvaluateSummary:
                 )
         return "\n".join(lines)
 
+    def convention_row(self) -> str | None:
+        """With a named convention (``params.convention``): its name, what it means, and the
+        paper's row of metrics in the paper's order ("—" where a metric has no value)."""
+        name = self.record["config"]["params"].get("convention")
+        if not name:
+            return None
+        from dancedata.experiments.evaluate_conventions import convention_named
+
+        preset = convention_named(name)
+        values = {r["metric"]: r["value"] for r in self.record["results"]}
+        cells = [
+            f"{header} {'—' if values.get(metric) is None else format(values[metric], '.4g')}"
+            for metric, header in preset.row
+        ]
+        skeleton = (self.record["config"].get("skeleton") or {}).get("skeleton")
+        return (
+            f"convention {preset.name}: {preset.summary}; skeleton {skeleton}\n"
+            f"{preset.name} row: " + "  ".join(cells)
+        )
+
     def message(self, command: str) -> str:
         head = (
             f"{command}: {self.record['store_version']} {self.record['split']}, "
             f"{self.record['n_scored']} of {self.record['n_sequences']} sequences scored; "
             f"record in {self.out}"
         )
-        return head + "\n" + self.table()
+        row = self.convention_row()
+        return head + "\n" + self.table() + ("" if row is None else "\n" + row)
 
 
 # ------------------------------------------------------------------------- reading each side
@@ -419,16 +449,13 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
     elif not generated.is_dir():
         raise InputError("--generated must be a folder of <seq_id> files or a store", generated)
 
-    model = None
-    model_id = None
-    if options.smpl_model:
-        from dancedata.io.smpl_model import cached_smpl_model
-
-        model = cached_smpl_model(options.smpl_model)
-        model_id = {
-            "file": Path(options.smpl_model).name,
-            "sha256": sha256_file(options.smpl_model),
-        }
+    # The rest skeleton: a model file wins; SMPL-24 stores otherwise use edge_smpl_offsets.
+    skeleton = None
+    motion_skeleton = store.group_attrs("motion").get("skeleton") or {}
+    if options.smpl_model or tuple(motion_skeleton.get("joints") or ()) == SMPL_JOINTS:
+        skeleton = smpl_skeleton(options.smpl_model)
+    model = None if skeleton is None else skeleton.model
+    model_id = None if skeleton is None else skeleton.record()["smpl_model"]
 
     measures: dict[str, list[tuple[int, int]]] | None = None
     if store.has_table("measures"):
@@ -478,6 +505,10 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
 
     reference = _reference_units(store, options, model, euler_order, measures)
     evaluation = evaluate_sequences(seqs, params, unreadable, reference)
+    if skeleton is not None:  # every metric computed from joint positions names its skeleton
+        for result in evaluation.results:
+            if result.name not in _ROTATION_METRICS:
+                result.convention["skeleton"] = skeleton.name
     config = {
         "params": params.as_dict(),
         "split": options.split,
@@ -485,6 +516,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         "exclude_genres": sorted(genres),
         "row_key": options.row_key,
         "smpl_model": model_id,
+        "skeleton": None if skeleton is None else skeleton.record(),
         "assumptions": {
             "generated_fps": options.generated_fps or "store fps",
             "generated_up_axis": options.generated_up_axis,

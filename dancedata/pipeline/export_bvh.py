@@ -18,9 +18,10 @@ Two layouts:
   OFFSETs come from the skeleton attrs when they hold any, else from ``motion/ik_rest_offsets``
   (rotations solved from joint positions by ``featurize --motion-families
   rotations_from_positions``; joints written parents first), else, for SMPL-24, from an SMPL model
-  file's rest joints (betas 0) or, without one, from the rounded mean-adult rest skeleton
-  :data:`dancedata.smpl.SMPL_REST_OFFSETS_M` (approximate; the result says so). The root's
-  position channels hold ``rest root + trans``. Default unit: centimetres.
+  file's rest joints (betas 0) or, without one, from the built-in ``edge_smpl_offsets`` skeleton
+  (:mod:`dancedata.compute.smpl_skeleton`; its root at the translation). The result's
+  ``offsets_from`` names which. The root's position channels hold ``rest root + trans``.
+  Default unit: centimetres.
 
 Accuracy: stored angles are float32 radians, so written angles are within about 1.4e-5 degrees
 of the source file for angles up to 4 rad (229 degrees); lengths within float32 rounding (about
@@ -166,8 +167,9 @@ def _rest_offsets(
     skel_attrs: dict[str, Any], smpl_model: str | Path | None
 ) -> tuple[np.ndarray, str]:
     """Rest OFFSETs (metres) of a skeleton without a channel layout, and their source."""
-    from dancedata.io.smpl_model import SMPL_MODEL_ENV, cached_smpl_model
-    from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS, SMPL_REST_OFFSETS_M
+    from dancedata.io.smpl_model import SMPL_MODEL_ENV
+    from dancedata.smpl import SMPL_JOINTS
+    from dancedata.smpl_skeletons import smpl_skeleton
 
     n = len(skel_attrs["joints"])
     if skel_attrs.get("offsets") is not None:
@@ -178,13 +180,10 @@ def _rest_offsets(
             f"skeleton {skel_attrs.get('name')!r} has no offsets, so no BVH hierarchy can be "
             "written for it"
         )
-    model_path = smpl_model or os.environ.get(SMPL_MODEL_ENV)
-    if model_path:
-        model = cached_smpl_model(model_path)
-        if model.parents != tuple(SMPL_PARENTS):
-            raise InputError("the SMPL model's kinematic tree is not SMPL-24's", model_path)
-        return model.joint_offsets(), f"SMPL model {Path(model_path).name} (betas 0)"
-    return SMPL_REST_OFFSETS_M.copy(), "approximate mean-adult SMPL rest skeleton (no model)"
+    rest = smpl_skeleton(smpl_model or os.environ.get(SMPL_MODEL_ENV))  # a model file wins
+    if rest.builtin:
+        return rest.model.joint_offsets(), f"{rest.name} (built-in SMPL rest skeleton, betas 0)"
+    return rest.model.joint_offsets(), f"SMPL model {rest.file} (betas 0)"
 
 
 def _generated_clip(

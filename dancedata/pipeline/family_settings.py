@@ -63,7 +63,8 @@ class MotionSettings:
     # The CLI sets $DANCEDATA_SMPL_MODEL from --smpl-model: worker processes inherit it.
     smpl_model: str | None = setting(
         help="SMPL model file (.npz/.pkl) for positions of SMPL stores; not bundled (licence): "
-        "get it from https://smpl.is.tue.mpg.de. Default: $DANCEDATA_SMPL_MODEL.",
+        "get it from https://smpl.is.tue.mpg.de. Default: $DANCEDATA_SMPL_MODEL, else the "
+        "built-in edge_smpl_offsets skeleton (root at trans, betas 0).",
         path=True,
         default_factory=lambda: os.environ.get("DANCEDATA_SMPL_MODEL"),
     )

@@ -3,7 +3,10 @@
 * SMPL-24 stores (AIST++): the rest joints of an SMPL model file (``--smpl-model`` or
   ``$DANCEDATA_SMPL_MODEL``; betas 0, as AIST++ has none) posed by ``axis_angle`` and moved by
   ``trans`` — see :mod:`dancedata.io.smpl_model`. No model ships with dancedata (licence); without
-  one the family stops with a message saying where to get it.
+  one the built-in ``edge_smpl_offsets`` skeleton is used (:mod:`dancedata.compute.smpl_skeleton`:
+  root at ``trans`` instead of ``J0 + trans``, betas 0). ``config()`` and the array's attrs name
+  the skeleton (``skeleton``: ``edge_smpl_offsets`` or ``sha256:<hex>`` of the model file), so a
+  change of model is a new fingerprint.
 * Skeletons with offsets in their attrs (BVH stores): forward kinematics of ``axis_angle`` and
   ``trans`` over those offsets. BVH ingest already stores positions, so this is only needed to
   rebuild them; rigs with position channels below the root stored theirs at ingest from the
@@ -23,9 +26,8 @@ import numpy as np
 
 from dancedata.compute.fk import forward_kinematics
 from dancedata.compute.rotations import axis_angle_to_rotmat
-from dancedata.compute.smpl_joints import smpl_joint_positions
 from dancedata.errors import InputError
-from dancedata.io.smpl_model import SMPL_MODEL_HELP, cached_smpl_model
+from dancedata.io.smpl_model import SMPL_MODEL_HELP
 from dancedata.pipeline.family import register_family
 from dancedata.pipeline.motion_family_base import (
     ArraySpec,
@@ -35,6 +37,7 @@ from dancedata.pipeline.motion_family_base import (
 )
 from dancedata.pipeline.source_arrays import source_array
 from dancedata.smpl import SMPL_JOINTS
+from dancedata.smpl_skeletons import skeleton_name, smpl_skeleton
 
 __all__ = ["PositionsFamily", "smpl_model_identity"]
 
@@ -74,25 +77,22 @@ class PositionsFamily(MotionFamily):
         model = smpl_model_identity(settings.smpl_model)
         if model is not None:
             attrs["smpl_model"] = model
+        attrs["smpl_skeleton"] = skeleton_name(settings.smpl_model)  # SMPL-24 stores only
         return [ArraySpec("positions", (n_joints, 3), np.float32, attrs)]
 
     def compute(self, batch: MotionBatch, settings: MotionSettings) -> dict[str, np.ndarray]:
         skeleton = batch.attrs.get("skeleton") or {}
         axis_angle, trans = batch.arrays["axis_angle"], batch.arrays["trans"]
         if _is_smpl(skeleton):
-            if not settings.smpl_model:
+            rest = smpl_skeleton(settings.smpl_model)  # a model file wins; else edge_smpl_offsets
+            parents = tuple(int(p) for p in skeleton.get("parents") or rest.model.parents)
+            if tuple(rest.model.parents) != parents:
                 raise InputError(
-                    f"the positions of an SMPL store need the SMPL model: {SMPL_MODEL_HELP}"
-                )
-            model = cached_smpl_model(settings.smpl_model)
-            parents = tuple(int(p) for p in skeleton.get("parents") or model.parents)
-            if model.parents != parents:
-                raise InputError(
-                    f"the model's kinematic tree ({model.n_joints} joints) is not the store's "
-                    "SMPL-24 tree",
+                    f"the {rest.name} kinematic tree ({rest.model.n_joints} joints) is not the "
+                    "store's SMPL-24 tree",
                     settings.smpl_model,
                 )
-            return {"positions": smpl_joint_positions(model, axis_angle, trans)}
+            return {"positions": rest.positions(axis_angle, trans)}
         if skeleton.get("offsets") is not None:
             if _has_joint_translations(skeleton):
                 raise InputError(
@@ -111,7 +111,13 @@ class PositionsFamily(MotionFamily):
         )
 
     def config(self, settings: MotionSettings) -> dict[str, Any]:
-        return {"smpl_model": smpl_model_identity(settings.smpl_model), "betas": "zeros"}
+        # ``skeleton`` names the rest skeleton of SMPL-24 stores; other rigs use the offsets of
+        # their own skeleton attrs (fingerprinted with the parent version).
+        return {
+            "smpl_model": smpl_model_identity(settings.smpl_model),
+            "betas": "zeros",
+            "skeleton": skeleton_name(settings.smpl_model),
+        }
 
 
 def _has_joint_translations(skeleton: dict[str, Any]) -> bool:

@@ -3,8 +3,10 @@
 Sources, and the order ``source="auto"`` tries them in:
 
 1. ``smpl``: SMPL joints (24, metres, y-up) posed from ``motion/axis_angle`` and ``motion/trans``
-   with an SMPL model file (``smpl_model``; :mod:`dancedata.io.smpl_model`). Chosen first when a
-   model is given and the store's skeleton is SMPL-24.
+   about an SMPL model file's rest joints (``smpl_model``; :mod:`dancedata.io.smpl_model`) or,
+   without one, the built-in ``edge_smpl_offsets`` skeleton (:mod:`dancedata.smpl_skeletons`).
+   Chosen first when a model is given and the store's skeleton is SMPL-24; without a model,
+   after ``keypoints3d`` and ``positions`` (before ``fk`` and ``pose2d``).
 2. ``keypoints3d``: AIST++ COCO-17 keypoints (metres, y-up; NaN where not triangulated).
 3. ``positions``: ``motion/positions`` (BVH forward kinematics at ingest or featurize's positions
    family; 3-d joints from video CSV), in metres.
@@ -118,16 +120,13 @@ def _choose(store: DanceStore, motion: dict[str, Any], smpl_model: str | Path | 
     for source in ("keypoints3d", "positions"):
         if has(f"motion/{source}"):
             return source
+    if has("motion/axis_angle") and _is_smpl(skeleton):
+        return "smpl"  # the built-in edge_smpl_offsets skeleton
     if skeleton.get("offsets") is not None and has("motion/axis_angle"):
         return "fk"
     if has("motion/pose2d"):
         return "pose2d"
-    hint = (
-        ": give --smpl-model to draw SMPL joints from the stored rotations"
-        if has("motion/axis_angle") and _is_smpl(skeleton)
-        else ""
-    )
-    raise StoreError(f"this store holds no joint positions to draw{hint}", store.path)
+    raise StoreError("this store holds no joint positions to draw", store.path)
 
 
 def load_skeleton(
@@ -174,16 +173,12 @@ def load_skeleton(
     axis_angle = _slice(store, seq_id, "axis_angle")
     trans = _slice(store, seq_id, "trans")
     if source == "smpl":
-        if not smpl_model:
-            from dancedata.io.smpl_model import SMPL_MODEL_HELP
+        from dancedata.smpl_skeletons import smpl_skeleton
 
-            raise InputError(f"drawing SMPL joints needs the SMPL model: {SMPL_MODEL_HELP}")
-        from dancedata.compute.smpl_joints import smpl_joint_positions
-        from dancedata.io.smpl_model import cached_smpl_model
-
-        model = cached_smpl_model(smpl_model)
-        positions = smpl_joint_positions(model, axis_angle, trans)
-        skel = {"parents": list(model.parents), "joints": skeleton.get("joints") or []}
+        rest = smpl_skeleton(smpl_model)  # a model file wins; else edge_smpl_offsets
+        positions = rest.positions(axis_angle, trans)
+        skel = {"parents": list(rest.model.parents), "joints": skeleton.get("joints") or []}
+        label = f"{seq_id} (smpl, {rest.file or rest.name})"
         return _track(positions, skel, fps, "world", up, source, label)
     offsets = skeleton.get("offsets")
     if offsets is None:
@@ -246,15 +241,14 @@ def _read_generated(path: Path) -> dict[str, np.ndarray]:
 def _smpl_generated(
     poses: np.ndarray, trans: np.ndarray, smpl_model: str | Path | None, path: Path
 ) -> np.ndarray:
-    if not smpl_model:
-        raise InputError(
-            "this generated motion holds SMPL rotations; drawing it needs --smpl-model", path
-        )
-    from dancedata.compute.smpl_joints import smpl_joint_positions
-    from dancedata.io.smpl_model import cached_smpl_model
+    """SMPL rotations → joints about the model file's rest joints, else edge_smpl_offsets."""
+    from dancedata.smpl_skeletons import smpl_skeleton
 
-    poses = np.asarray(poses, dtype=np.float64).reshape(poses.shape[0], 24, 3)
-    return smpl_joint_positions(cached_smpl_model(smpl_model), poses, trans)
+    poses = np.asarray(poses, dtype=np.float64)
+    if poses.ndim < 2 or poses[0].size != 72:
+        raise InputError(f"SMPL poses must be (F, 72) or (F, 24, 3), got {poses.shape}", path)
+    poses = poses.reshape(poses.shape[0], 24, 3)
+    return smpl_skeleton(smpl_model).positions(poses, np.asarray(trans, dtype=np.float64))
 
 
 def _fact_rows(rows: np.ndarray, smpl_model: str | Path | None, path: Path) -> np.ndarray:
@@ -279,7 +273,8 @@ def load_generated(
     Layouts read (metres, y-up unless ``up_axis``): joint positions (F, J, 3) or (1, F, J, 3)
     (``.npy``, or the key ``positions``/``full_pose`` of an ``.npz``/``.pkl``); FACT 225-d rows
     (F, 225) or (1, F, 225); SMPL ``smpl_poses`` (F, 72) with ``smpl_trans`` (F, 3) (divided by
-    ``smpl_scaling`` when present, as AIST++ does). Rotations need ``smpl_model``. Bones: SMPL-24
+    ``smpl_scaling`` when present, as AIST++ does). Rotations are posed about ``smpl_model``'s rest
+    joints, else the built-in ``edge_smpl_offsets`` skeleton. Bones: SMPL-24
     for 24 joints, else ``like``'s skeleton when the joint counts match. ``fps``: default
     ``like.fps``.
     """

@@ -16,6 +16,15 @@ Steps and their named parameters, in the order of mint ``tools/calculate_scores.
    as Transflower). A complex result keeps its real part; the largest imaginary part dropped is
    reported (mint raises when a diagonal one exceeds 1e−3; here it is reported as
    ``details["imag_over_tolerance"]`` instead, so one bad matrix does not stop a run).
+
+Precision (``details["sqrtm_error_bound"]``, :func:`sqrtm_error_bound`). With fewer units than
+feature dimensions the covariances are singular, so Σ1 Σ2 has exactly-zero eigenvalues, where the
+square root is not differentiable: a backward-stable sqrtm (SciPy's Schur method, in every
+version) returns the root of Σ1 Σ2 + E with ‖E‖ ≈ ε‖Σ1 Σ2‖, and each zero eigenvalue, moved by up
+to about ε‖Σ1 Σ2‖, contributes up to √(ε‖Σ1 Σ2‖) to the trace. SciPy versions differ in how
+(SciPy 1.16 rewrote sqrtm), so the value is reproducible across versions only to within this
+bound (about 3.6e−6 relative has been seen on 12 units of the 72 kinetic dims); with more units
+than dimensions the bound is at float64 rounding.
 """
 
 from __future__ import annotations
@@ -29,11 +38,16 @@ from scipy import linalg
 from dancedata.experiments.metrics.result import MetricResult
 
 __all__ = [
+    "IMAG_TOLERANCE",
     "frechet_distance",
     "frechet_distance_from_moments",
     "moments",
     "reference_normalization",
+    "sqrtm_error_bound",
 ]
+
+# mint's tolerance on the imaginary part of sqrtm's diagonal (np.allclose(..., atol=1e-3)).
+IMAG_TOLERANCE = 1e-3
 
 Moments = Literal["covariance", "uncentred"]
 
@@ -69,15 +83,49 @@ def moments(features: np.ndarray, kind: Moments = "covariance") -> tuple[np.ndar
     raise ValueError(f"moments must be 'covariance' or 'uncentred', got {kind!r}")
 
 
+def sqrtm_error_bound(product: np.ndarray) -> float:
+    """First-order bound on the error of ``2 Tr sqrtm(A)`` (A = Σ1 Σ2, as used) from float64
+    rounding, i.e. how far two correct sqrtm implementations may disagree on the Fréchet
+    distance.
+
+    A backward-stable sqrtm returns the root of A + E with ‖E‖ ≤ δ = ε‖A‖_F (ε = float64
+    machine epsilon). An eigenvalue λ of A moves by up to δ; its root moves by δ / (2√|λ|) when
+    |λ| > δ, and by up to √δ when |λ| ≤ δ (the zero eigenvalues of a singular product, where
+    √ has infinite slope). Σ1 Σ2 is similar to a positive semi-definite matrix, so its
+    eigenvalues are real, ≥ 0 and it is diagonalisable: no Jordan block amplifies this. The
+    bound is twice the sum over the eigenvalues (the distance has −2 Tr).
+    """
+    a = np.atleast_2d(np.asarray(product, dtype=np.float64))
+    if a.size == 0 or not np.all(np.isfinite(a)):
+        return float("nan")
+    delta = np.finfo(np.float64).eps * float(np.linalg.norm(a))
+    if delta == 0.0:
+        return 0.0
+    magnitude = np.abs(np.linalg.eigvals(a))
+    per = np.where(magnitude > delta, delta / (2.0 * np.sqrt(np.maximum(magnitude, delta))),
+                   np.sqrt(delta))  # fmt: skip
+    return float(2.0 * per.sum())
+
+
 def frechet_distance_from_moments(
     mu1: np.ndarray,
     sigma1: np.ndarray,
     mu2: np.ndarray,
     sigma2: np.ndarray,
     eps: float | None = 1e-6,
-    imag_tolerance: float = 1e-3,
+    imag_tolerance: float = IMAG_TOLERANCE,
 ) -> tuple[float, dict[str, Any]]:
-    """The Fréchet distance of two Gaussians, and diagnostics (eps retry, imaginary parts)."""
+    """The Fréchet distance of two Gaussians, and diagnostics.
+
+    ``details``: ``eps_retry`` (sqrtm was not finite and was retried with ``eps`` I added);
+    ``max_imag`` (the largest |imaginary part| of sqrtm's result, dropped; 0 for a real result);
+    ``imag_over_tolerance``: True when an imaginary part on sqrtm's *diagonal* exceeds
+    ``imag_tolerance`` (1e−3, mint's), i.e. where mint's code raises "Imaginary component";
+    the value is then still Tr of the real part, but Σ1 Σ2 was too ill-conditioned for its
+    root to be trusted, so read the number as unreliable; ``imag_tolerance`` itself;
+    ``sqrtm_error_bound`` (:func:`sqrtm_error_bound`: how far the value may move between
+    correct sqrtm implementations, e.g. SciPy versions); ``sqrtm_warning`` when SciPy warned.
+    """
     mu1, mu2 = np.atleast_1d(mu1), np.atleast_1d(mu2)
     sigma1, sigma2 = np.atleast_2d(sigma1), np.atleast_2d(sigma2)
     if mu1.shape != mu2.shape or sigma1.shape != sigma2.shape:
@@ -87,19 +135,26 @@ def frechet_distance_from_moments(
     details: dict[str, Any] = {"eps_retry": False}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", linalg.LinAlgWarning)
-        covmean = linalg.sqrtm(sigma1 @ sigma2)
+        product = sigma1 @ sigma2
+        covmean = linalg.sqrtm(product)
         if not np.all(np.isfinite(covmean)) and eps is not None:
             offset = np.eye(sigma1.shape[0]) * eps
-            covmean = linalg.sqrtm((sigma1 + offset) @ (sigma2 + offset))
+            product = (sigma1 + offset) @ (sigma2 + offset)
+            covmean = linalg.sqrtm(product)
             details["eps_retry"] = True
     if caught:  # e.g. "Matrix is singular": reported with the value, not printed
         details["sqrtm_warning"] = str(caught[-1].message)[:200]
+    # The same keys whether or not this SciPy returned a complex array (1.16+ often does not).
+    details["max_imag"] = 0.0
+    details["imag_over_tolerance"] = False
+    details["imag_tolerance"] = imag_tolerance
     if np.iscomplexobj(covmean):
         details["max_imag"] = float(np.max(np.abs(covmean.imag)))
         details["imag_over_tolerance"] = bool(
             np.max(np.abs(np.diagonal(covmean).imag)) > imag_tolerance
         )
         covmean = covmean.real
+    details["sqrtm_error_bound"] = sqrtm_error_bound(product)
     diff = mu1 - mu2
     value = float(diff @ diff + np.trace(sigma1) + np.trace(sigma2) - 2.0 * np.trace(covmean))
     return value, details
