@@ -29,12 +29,22 @@ if TYPE_CHECKING:
     import zarr
 
 
+def store_locator(path: str | Path) -> str:
+    """``path`` as a string that names the same store after pickling: URLs (``s3://…``) kept
+    verbatim, local paths as ``str(Path(path))``."""
+    text = str(path)
+    return text if isinstance(path, str) and "://" in text else str(Path(text))
+
+
 class SequenceReader:
     """A committed version of a store, read as sequences (the generic core of
     :class:`dancedata.loader.DanceStore`)."""
 
     def __init__(self, path: str | Path, version: str | None = None) -> None:
         self.path = Path(path)
+        self.locator = store_locator(path)
+        """The store as given, as a string that reopens it: a local folder or a URL such as
+        ``s3://bucket/prefix`` (``Path`` would turn ``s3://`` into ``s3:/``)."""
         self._reader = VersionReader(path, version)
         self.version = self._reader.version
         self._arrays: dict[str, np.ndarray] = {}

@@ -52,7 +52,7 @@ class PadCollate:
         for key in items[0]:
             values = [item[key] for item in items]
             if key in TIME_KEYS:
-                out[key] = _pad(values, total, self.pad_value)
+                out[key] = _pad(values, lengths, total, self.pad_value)
             elif key in ("mask", "length"):
                 continue
             elif isinstance(values[0], str):
@@ -66,12 +66,16 @@ class PadCollate:
         return out
 
 
-def _pad(values: list[Any], total: int, pad_value: float) -> torch.Tensor:
+def _pad(values: list[Any], lengths: list[int], total: int, pad_value: float) -> torch.Tensor:
+    """(B, total, ...) of ``values`` with ``pad_value`` after each item's ``lengths[b]`` real
+    frames (items may arrive already padded, e.g. by a dataset's ``__getitems__``)."""
     first = torch.as_tensor(values[0])
     out = torch.full((len(values), total, *first.shape[1:]), pad_value, dtype=first.dtype)
-    for i, v in enumerate(values):
+    for i, (v, n) in enumerate(zip(values, lengths, strict=True)):
         v = torch.as_tensor(v)
         out[i, : v.shape[0]] = v
+        if pad_value != 0.0 and n < v.shape[0]:
+            out[i, n:] = pad_value
     return out
 
 

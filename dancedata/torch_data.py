@@ -1,18 +1,38 @@
-"""PyTorch access to the windows of a store (torch is optional and imported on use).
+"""PyTorch access to the windows of a store (torch is optional and imported on use; install
+it with the torch extra, ``pip install 'dancedata[learned]'``).
 
+    from torch.utils.data import DataLoader
     from dancedata.torch_data import MeasureDataset, SecondsDataset
     ds = MeasureDataset("data/stores/aist-demo", split="train")
     item = ds[0]   # {"motion": (T, 225) tensor, "audio": (T, 35) tensor, "genre": (G,), ...}
+    for batch in DataLoader(ds, batch_size=8, shuffle=True, num_workers=2):
+        batch["motion"], batch["mask"], batch["length"]   # (B, T, 225), (B, T) bool, (B,)
 
-Measures differ in length when tempi differ (and by a frame at one tempo): batch them with
-:func:`dancedata.torch_batching.pad_collate` (mask + lengths) and, to pad little,
-:class:`dancedata.torch_batching.LengthBucketSampler`; or make every item ``window_frames``
+The default views (columns in order, per frame):
+
+* ``motion`` = ``fact_motion_225``: columns 0–5 zeros (FACT's released data has them), 6–8
+  root translation (x, y, z, metres), 9–224 the 24 SMPL joints' local rotation matrices, 9
+  row-major values each (joint ``j`` at columns ``9 + 9j … 17 + 9j``) in SMPL order: root,
+  lhip, rhip, belly, lknee, rknee, spine, lankle, rankle, chest, ltoes, rtoes, neck,
+  linshoulder, rinshoulder, head, lshoulder, rshoulder, lelbow, relbow, lwrist, rwrist, lhand,
+  rhand (:data:`dancedata.compute.motion_features.SMPL_JOINT_NAMES`).
+* ``audio`` = ``fact_audio_35``: column 0 onset strength, 1–20 MFCC, 21–32 chroma CENS (C to
+  B), 33 onset peaks (0/1), 34 beats (0/1), one row per motion frame.
+
+Measures differ in length when tempi differ (and by a frame at one tempo). Batches the
+DataLoader builds (``batch_size=...``) are read through :meth:`_WindowDataset.__getitems__`,
+which pads the windows of a batch to its longest with zeros and adds ``mask`` (T,) bool and
+``length`` to each item, so torch's default collate stacks them (without it, workers died in
+that collate with "Trying to resize storage that is not resizable"). For less padding use
+:func:`dancedata.torch_batching.training_loader` (seeded, ``bucket=True`` for length buckets)
+or :func:`~dancedata.torch_batching.pad_collate` with
+:class:`~dancedata.torch_batching.LengthBucketSampler`; or make every item ``window_frames``
 long with ``fit="resample"|"crop"|"pad"`` (:mod:`dancedata.window_fit`). ``n_measures`` /
 ``hop_measures`` make windows of several measures; :class:`SecondsDataset` makes sliding
 windows of ``seconds`` every ``hop_seconds`` (:mod:`dancedata.window_spans`).
 
-Datasets pickle small and open the store lazily in each data-loader worker, so
-``num_workers > 0`` works with fork and spawn.
+Datasets pickle small and open the store lazily in each data-loader worker (local folders and
+``s3://`` stores alike), so ``num_workers > 0`` works with fork and spawn.
 """
 
 from __future__ import annotations
@@ -33,7 +53,8 @@ def _torch() -> Any:
         import torch
     except ImportError:
         raise ImportError(
-            "dancedata.torch_data needs PyTorch: pip install torch (or dancedata[stems])"
+            "dancedata.torch_data needs PyTorch: pip install 'dancedata[learned]' (the torch "
+            "extra; 'dancedata[stems]' brings it too)"
         ) from None
     return torch
 
@@ -119,6 +140,28 @@ class _WindowDataset:
             if key in item:
                 item[key] = torch.from_numpy(np.ascontiguousarray(item[key]))
         return item
+
+    def __getitems__(self, indices: list[int]) -> list[dict[str, Any]]:
+        """The items of one DataLoader batch, padded to the batch's longest window with zeros,
+        each with ``mask`` (T,) bool (True on real frames) and ``length``, so torch's default
+        collate stacks them. Items of fixed-length datasets (``window_frames``) are unchanged.
+        ``pad_collate`` gives the same batch from these as from unpadded items."""
+        items = [self[i] for i in indices]
+        if self.source.window_frames is not None or not items:
+            return items
+        keys = [k for k in ("motion", "audio") if k in items[0]]
+        total = max(int(item[keys[0]].shape[0]) for item in items)
+        torch = _torch()
+        for item in items:
+            n = int(item[keys[0]].shape[0])
+            for key in keys:
+                value = item[key]
+                if n < total:
+                    padded = value.new_zeros((total, *value.shape[1:]))
+                    padded[:n] = value
+                    item[key] = padded
+            item["mask"] = torch.arange(total) < n
+        return items
 
 
 class MeasureDataset(_WindowDataset):

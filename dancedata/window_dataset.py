@@ -1,9 +1,9 @@
 """Windows of a store as numpy items: the engine behind the torch datasets, without torch.
 
-A :class:`WindowSource` holds only small things (the store path, the window spans, the
-options), so it pickles in a few kilobytes: a data-loader worker started by ``spawn`` gets a
-copy that opens the store itself, on its first item; one started by ``fork`` inherits whatever
-the parent already loaded (zarr resets its event loop after a fork). Views are read through the
+A :class:`WindowSource` holds only small things (the store's locator string, the window
+spans, the options), so it pickles in a few kilobytes: a data-loader worker started by
+``spawn`` gets a copy that opens the store itself, on its first item; one started by
+``fork`` inherits whatever the parent already loaded (zarr resets its event loop after a fork). Views are read through the
 reader's whole-array cache (:meth:`SequenceReader.whole_array`), so after the first item of a
 process a window costs a few numpy slices.
 
@@ -72,6 +72,7 @@ class WindowSource:
             raise InputError(f"window_frames must be ≥ 1 (got {window_frames})")
         opened = store if isinstance(store, DanceStore) else DanceStore(store, version)
         self.path = opened.path
+        self.locator = opened.locator  # what workers reopen: a URL stays a URL when pickled
         self.version = opened.version
         self.split, self.scheme = split, scheme
         self.motion_view, self.audio_view = motion, audio
@@ -120,7 +121,7 @@ class WindowSource:
     def store(self) -> DanceStore:
         """The store, opened in this process on first use."""
         if self._store is None:
-            self._store = DanceStore(self.path, self.version)
+            self._store = DanceStore(self.locator, self.version)
         return self._store
 
     def _ensure_views(self) -> tuple[dict[str, _ViewRows], dict[str, tuple[int, int]]]:

@@ -67,11 +67,14 @@ def opened(store):
 # ------------------------------------------------------------------------- padding collate
 
 
-def test_plain_default_collate_fails_on_measures_of_different_lengths(store) -> None:
+def test_plain_default_collate_pads_measures_of_different_lengths(store) -> None:
+    # It raised RuntimeError; the dataset's __getitems__ now pads each batch (test_torch_idiom).
     ds = MeasureDataset(store, split="train")
     assert len(set(ds.lengths.tolist())) > 1
-    with pytest.raises(RuntimeError):
-        list(DataLoader(ds, batch_size=8))
+    batches = list(DataLoader(ds, batch_size=8))
+    assert sum(len(b["seq_id"]) for b in batches) == len(ds)
+    for batch in batches:
+        assert batch["mask"].sum(1).tolist() == batch["length"].tolist()
 
 
 def test_pad_collate_batch_8_matches_per_item_reads(store, opened) -> None:
