@@ -130,9 +130,7 @@ def test_s3_dataset_survives_pickling_and_spawned_workers(s3_store) -> None:
     np.testing.assert_array_equal(copy[0]["motion"].numpy(), ds[0]["motion"].numpy())
     assert copy.store.locator == s3_store and copy.store.version == ds.store.version
     serial = list(DataLoader(ds, batch_size=4))
-    spawned = list(
-        DataLoader(ds, batch_size=4, num_workers=2, multiprocessing_context="spawn")
-    )
+    spawned = list(DataLoader(ds, batch_size=4, num_workers=2, multiprocessing_context="spawn"))
     assert len(serial) == len(spawned) > 1
     for x, y in zip(serial, spawned, strict=True):
         assert x["seq_id"] == y["seq_id"]
