@@ -166,14 +166,82 @@ def transport_floor(n: int, frames: int, epochs: int, workers: int):
     return run_epochs(batches, epochs)
 
 
+class Repeated:
+    """A window dataset read ``k`` times per pass (index ``i`` is window ``i % n``): more
+    batches per pass from a small store, so a pass is not dominated by starting it."""
+
+    def __init__(self, dataset, k: int) -> None:
+        import numpy as np
+
+        self.dataset, self.k = dataset, k
+        self.lengths = np.tile(dataset.lengths, k)
+
+    def __len__(self) -> int:
+        return len(self.dataset) * self.k
+
+    def batch(self, indices, multiple_of: int = 1):
+        return self.dataset.batch([i % len(self.dataset) for i in indices], multiple_of)
+
+    def batch_parcel(self, indices, multiple_of: int = 1):
+        n = len(self.dataset)
+        return self.dataset.batch_parcel([i % n for i in indices], multiple_of)
+
+
+class RepeatedPerTensor(Repeated):
+    """:class:`Repeated` without ``batch_parcel``: workers hand over each tensor of a batch
+    separately (one shared-memory handle each), as before batch parcels."""
+
+    batch_parcel = None
+
+
+def workers_only(store: Path, epochs: int, repeat: int) -> int:
+    """Issue 24 item 4: ``training_loader`` with 2 workers against 0, batch reads and
+    SLERP-resampled windows, with this process's CPU per batch and the load average."""
+    from dancedata.torch_data import MeasureDataset
+
+    load0 = os.getloadavg()
+    rows = []
+    for name, options in (
+        ("measures, batch reads", {}),
+        ("window_frames=128 resample", {"window_frames": 128}),
+    ):
+        windows = MeasureDataset(store, split="train", **options).preload()
+        for workers, wrap in ((0, Repeated), (2, Repeated), (2, RepeatedPerTensor)):
+            first, rate, cpu_ms, n = dancedata_loader(wrap(windows, repeat), epochs, workers)
+            label = f"{workers}" + (" (per tensor)" if wrap is RepeatedPerTensor else "")
+            rows.append((name, label, rate, cpu_ms, n))
+    print(
+        f"load average at start {load0[0]:.1f} / {load0[1]:.1f} / {load0[2]:.1f} "
+        f"on {os.cpu_count()} CPUs; end {os.getloadavg()[0]:.1f}"
+    )
+    print(
+        f"| windows | workers | windows / pass | batches of {BATCH} / s | × 0 workers "
+        "| training-process CPU ms / batch |"
+    )
+    print("|---|---:|---:|---:|---:|---:|")
+    for name, workers, rate, cpu_ms, n in rows:
+        base = next(r[2] for r in rows if r[0] == name and r[1] == "0")
+        print(f"| {name} | {workers} | {n} | {rate:.1f} | ×{rate / base:.2f} | {cpu_ms:.1f} |")
+    return 0
+
+
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--store", type=Path, default=None)
     parser.add_argument("--epochs", type=int, default=3)
+    parser.add_argument(
+        "--workers-only", action="store_true", help="only training_loader, 2 workers against 0"
+    )
+    parser.add_argument("--repeat", type=int, default=1, help="read each window k times a pass")
     args = parser.parse_args(argv)
     store = args.store or DEFAULT_STORE
     if args.store is None:
         build_store(store)
+    if args.workers_only:
+        import torch
+
+        torch.set_num_threads(1)
+        return workers_only(store, args.epochs, args.repeat)
 
     import numpy as np
     import torch

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from torch.utils.data import BatchSampler, DataLoader, Sampler
+from torch.utils.data import BatchSampler, DataLoader, Sampler, get_worker_info
 
 from dancedata.batching import bucket_batches, epoch_permutation, lengths_mask, padded_length
 
@@ -152,7 +152,8 @@ class LengthBucketSampler(Sampler[list[int]]):
 class BatchReads:
     """A dataset whose items are whole batches: ``reads[indices]`` is ``dataset.batch(indices)``
     (padded, one copy per window). Used with ``DataLoader(reads, sampler=<batch sampler>,
-    batch_size=None)``, so workers build batches without a per-item step."""
+    batch_size=None)``, so workers build batches without a per-item step; in a worker a
+    dataset's ``batch_parcel`` (one shared-memory buffer per batch) is used when it has one."""
 
     def __init__(self, dataset: Any, multiple_of: int = 1) -> None:
         self.dataset, self.multiple_of = dataset, multiple_of
@@ -160,8 +161,10 @@ class BatchReads:
     def __len__(self) -> int:
         return len(self.dataset)
 
-    def __getitem__(self, indices: list[int]) -> dict[str, Any]:
-        return self.dataset.batch(list(indices), self.multiple_of)
+    def __getitem__(self, indices: list[int]) -> Any:
+        if get_worker_info() is not None and getattr(self.dataset, "batch_parcel", None):
+            return self.dataset.batch_parcel(list(indices), self.multiple_of)  # unpickles as
+        return self.dataset.batch(list(indices), self.multiple_of)  # the same dict
 
 
 def _as_is(batch: Any) -> Any:

@@ -14,6 +14,7 @@ split is its own error), the source made, and a split that yields no windows ref
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,13 @@ from dancedata.views.assemble import require_view_arrays
 from dancedata.views.layouts import VIEWS, check_view_names
 from dancedata.window_fit import FIT_MODES, ColumnPart, column_plan, fit_window
 from dancedata.window_spans import WindowSpans, measure_spans, second_spans
+
+Allocate = Callable[[dict[str, tuple[int, ...]]], dict[str, np.ndarray]]
+"""Shapes by name → zeroed float32 arrays of those shapes (see :meth:`WindowSource.batch`)."""
+
+
+def _zeros(shapes: dict[str, tuple[int, ...]]) -> dict[str, np.ndarray]:
+    return {name: np.zeros(shape, np.float32) for name, shape in shapes.items()}
 
 
 class _ViewRows:
@@ -178,43 +186,48 @@ class WindowSource:
             out["audio"] = views["audio"].rows(audio0 + start, audio0 + start + length)
         return out
 
-    def batch(self, indices: list[int], multiple_of: int = 1) -> dict[str, Any]:
+    def batch(
+        self, indices: list[int], multiple_of: int = 1, alloc: Allocate | None = None
+    ) -> dict[str, Any]:
         """Windows ``indices`` as one padded batch, the numpy form of
         ``torch_batching.pad_collate([item(i) for i in indices])``: seq_id (list), measure,
         frame_start, lengths (B,) int64, genre (B, G), motion / audio (B, T, D) float32 zero
         after each window's end, mask (B, T) bool. Without ``window_frames`` each view part is
-        copied once, straight into its place in the batch."""
+        copied once, straight into its place in the batch. ``alloc`` makes the zeroed float32
+        motion / audio arrays from their shapes, all at once (default ``np.zeros``; the torch
+        dataset passes one that places them in one shared-memory buffer in workers)."""
         from dancedata.batching import lengths_mask, padded_length
 
         rows = [i % len(self) for i in indices]
+        alloc = alloc or _zeros
         if self.window_frames is not None:
             items = [self.item(i) for i in rows]
             lengths = [it["length"] for it in items]
             total = padded_length([self.window_frames], multiple_of)
-            out: dict[str, Any] = {}
-            for name in ("motion", "audio"):
-                if name in items[0]:
-                    out[name] = np.zeros((len(items), total, items[0][name].shape[1]), np.float32)
-                    for b, it in enumerate(items):
-                        out[name][b, : self.window_frames] = it[name]
+            names = [name for name in ("motion", "audio") if name in items[0]]
+            out: dict[str, Any] = alloc(
+                {name: (len(items), total, items[0][name].shape[1]) for name in names}
+            )
+            for name in names:
+                for b, it in enumerate(items):
+                    out[name][b, : self.window_frames] = it[name]
         else:
             views, offsets = self._ensure_views()
             lengths = [int(self.spans.length[i]) for i in rows]
             total = padded_length(lengths, multiple_of)
-            out = {}
+            widths = {name: part_widths(view.parts) for name, view in views.items()}
+            out = alloc({name: (len(rows), total, sum(w)) for name, w in widths.items()})
             for name, view in views.items():
-                widths = part_widths(view.parts)
-                dest = np.zeros((len(rows), total, sum(widths)), np.float32)
+                dest = out[name]
                 for b, i in enumerate(rows):
                     base = offsets[self.spans.seq_ids[i]][0 if name == "motion" else 1]
                     a = base + int(self.spans.frame_start[i])
                     n = lengths[b]
                     col = 0
-                    for part, width in zip(view.parts, widths, strict=True):
+                    for part, width in zip(view.parts, widths[name], strict=True):
                         if part is not None:
                             dest[b, :n, col : col + width] = part[a : a + n]
                         col += width
-                out[name] = dest
         seq_ids = [self.spans.seq_ids[i] for i in rows]
         out.update(
             seq_id=seq_ids,

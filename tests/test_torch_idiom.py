@@ -141,3 +141,25 @@ def test_local_locator_is_the_path_string(store) -> None:
     ds = MeasureDataset(store, split="train", audio=None)
     assert ds.store.locator == str(store)
     assert pickle.loads(pickle.dumps(ds)).store.path == Path(store)
+
+
+def test_batch_parcel_pickles_as_one_shared_buffer_and_unpacks_to_the_batch(store) -> None:
+    from multiprocessing.reduction import ForkingPickler
+
+    for options in ({}, {"window_frames": 96, "fit": "resample"}):
+        ds = MeasureDataset(store, split="train", **options)
+        indices = [len(ds) - 1, 0, 3]
+        expected = ds.batch(indices, multiple_of=16)
+        parcel = ds.batch_parcel(indices, multiple_of=16)
+        assert parcel.flat.is_shared() and set(parcel.shapes) == {"motion", "audio"}
+        blob = bytes(ForkingPickler.dumps(parcel))
+        for unpacked in (parcel.unpack(), pickle.loads(blob)):
+            assert isinstance(unpacked, dict) and unpacked.keys() == expected.keys()
+            for key, value in expected.items():
+                if isinstance(value, torch.Tensor):
+                    assert unpacked[key].dtype == value.dtype, key
+                    assert torch.equal(unpacked[key], value), key
+                    assert unpacked[key].is_contiguous()
+                else:
+                    assert unpacked[key] == value, key
+        assert len(blob) < 20_000  # the windows themselves are not in the pickle
