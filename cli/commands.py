@@ -19,5 +19,6 @@ from dancedata.cli import (  # noqa: F401
     report,
     stats,
     synth,
+    tempo,
     unlock,
 )

@@ -25,6 +25,12 @@ def set_quiet(quiet: bool) -> None:
     _QUIET = quiet
 
 
+def note(text: str) -> None:
+    """One line on stderr (a result worth seeing, e.g. an estimated tempo), unless quiet."""
+    if not _QUIET:
+        print(text, file=sys.stderr, flush=True)
+
+
 def _plain_interval() -> float:
     text = os.environ.get("DANCEDATA_PROGRESS_SECONDS")
     try:

@@ -4,8 +4,9 @@ Music is only described here (sample rate, length, tempo); featurize decodes it 
 ``fps × 512`` Hz. The music starts with the video: ``audio_offset`` is 0, so feature frame i
 (at ``i / fps`` s) meets motion frame i.
 
-Tempo: ``--bpm`` when given, else estimated with ``librosa.beat.beat_track`` on the music
-decoded at :data:`BPM_SR` Hz (hop :data:`BPM_HOP`), recorded as ``bpm_estimated``.
+Tempo: ``--bpm`` when given, else estimated as ``librosa.beat.beat_track`` does on the music
+decoded at :data:`BPM_SR` Hz (hop :data:`BPM_HOP`; :mod:`dancedata.compute.tempo`), printed
+with its half and double, and recorded as ``bpm_estimated``.
 
 A video's audio track is decoded with PyAV (the optional ``viz`` extra; it ships its own FFmpeg
 libraries, so no ``ffmpeg`` program is needed). Its presence is read from the container
@@ -28,6 +29,7 @@ from dancedata.io.audio_decode import DEFAULT_MAX_AUDIO_SECONDS
 from dancedata.io.av_audio import AV_HINT, av_available
 from dancedata.io.music_file import FileStamp, file_stamp
 from dancedata.io.video_clock import audio_track_present, extract_audio
+from dancedata.progress import note
 
 BPM_SR = 22050
 BPM_HOP = 512
@@ -89,16 +91,20 @@ class MusicTrack:
 
 
 def estimate_bpm(y: np.ndarray, sr: int, path: Path) -> float:
-    """Tempo of mono ``y`` (float32 at ``sr`` Hz) in beats per minute, by beat_track."""
+    """Tempo of mono ``y`` (float32 at ``sr`` Hz) in beats per minute: the tempo
+    ``librosa.beat.beat_track`` returns, without its beat tracker
+    (:func:`dancedata.compute.tempo.estimate_tempo`); prints it with its half and double."""
     import librosa
+
+    from dancedata.compute.tempo import estimate_tempo, onset_envelope
 
     if sr != BPM_SR:
         y = librosa.resample(y, orig_sr=sr, target_sr=BPM_SR)
-    tempo, _ = librosa.beat.beat_track(y=y, sr=BPM_SR, hop_length=BPM_HOP)
-    bpm = float(np.atleast_1d(tempo)[0])
-    if not bpm > 0:
+    estimate = estimate_tempo(onset_envelope(y, BPM_SR, BPM_HOP), BPM_SR, BPM_HOP)
+    if not estimate.bpm > 0:
         raise InputError("no tempo found in the music; give it with --bpm", path)
-    return bpm
+    note(f"tempo of {path}: {estimate.line()}; --bpm B sets it")
+    return estimate.bpm
 
 
 def bpm_method() -> dict[str, Any]:
