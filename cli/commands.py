@@ -3,6 +3,7 @@
 from dancedata.cli import (  # noqa: F401
     apps,
     cache,
+    card,
     checkout,
     evaluate,
     experiment,

@@ -19,6 +19,13 @@ def report(
         int, typer.Option(min=0, help="Sequences drawn in the plot gallery (0 for none).")
     ] = 3,
     version: VersionOpt = None,
+    croissant: Annotated[
+        bool,
+        typer.Option(
+            "--croissant",
+            help="Also write OUT's Croissant record (OUT with .croissant.json) and link it.",
+        ),
+    ] = False,
 ) -> None:
     """Write OUT.html: version lineage (commands, fingerprints), counts per split, genre,
     tempo, dancer and source, durations, skipped inputs, feature distributions with NaN and
@@ -30,5 +37,12 @@ def report(
     from dancedata.viz.report import build_report, check_report_path, write_report
 
     check_report_path(out)
-    html = build_report(store, version, gallery=gallery)
+    record = out.with_suffix(".croissant.json") if croissant else None
+    html = build_report(
+        store, version, gallery=gallery, croissant=record.name if record else None
+    )
+    if record is not None:
+        from dancedata.viz.croissant import croissant_record, write_croissant
+
+        typer.echo(f"report: wrote {write_croissant(croissant_record(store, version), record)}")
     typer.echo(f"report: wrote {write_report(html, out)} ({len(html.encode()) / 1e6:.2f} MB)")

@@ -388,8 +388,10 @@ def build_report(
     gallery: int = 3,
     gallery_dpi: float = 60.0,
     max_hist_rows: int = 20000,
+    croissant: str | None = None,
 ) -> str:
-    """The dataset card of ``version`` (default latest) of ``store`` as one HTML string."""
+    """The dataset card of ``version`` (default latest) of ``store`` as one HTML string;
+    ``croissant``: the relative address of its Croissant record, linked from the page."""
     started = time.perf_counter()
     info = summarize(store, version)
     reader = VersionReader(store, info["version"])
@@ -421,6 +423,11 @@ def build_report(
         f"from <code>{h.esc(info['store'])}</code> version {h.esc(info['version'])}. "
         "Numbers marked above are those of <code>dancedata info --json</code>.</p>"
     )
+    if croissant:
+        sections.append(
+            f'<p class="muted">Machine-readable record: {h.link(croissant, "Croissant JSON-LD")}'
+            " (<code>dancedata card</code>).</p>"
+        )
     return h.page(
         f"Dataset card: {Path(str(info['store'])).name or info['store']}",
         f"{info['store']} · version {info['version']} (latest {info['latest']}) · "

@@ -183,5 +183,10 @@ def page(title: str, subtitle: str, sections: list[str]) -> str:
     )
 
 
+def link(href: str, text: str) -> str:
+    """A link to a file next to the page (relative ``href``)."""
+    return f'<a href="{esc(href)}">{esc(text)}</a>'
+
+
 def section(anchor: str, title: str, body: str) -> str:
     return f'<section id="{esc(anchor)}"><h2>{esc(title)}</h2>{body}</section>'
