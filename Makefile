@@ -12,6 +12,10 @@ DEV_STAMP := $(VENV)/.installed-dev
 # test` installs it once (its own stamp) so tests/test_stems_openunmix.py runs instead of skipping.
 STEMS_STAMP := $(VENV)/.installed-stems
 STEMS_PINS ?= torch==2.14.1 torchaudio==2.11.0 openunmix==1.3.0
+# An extra package index for the stems stack, e.g. PyTorch's CPU-only builds on a machine without
+# a GPU: make test TORCH_INDEX=https://download.pytorch.org/whl/cpu (PyPI's torch brings ~4 GB of
+# CUDA libraries; the CPU build's local version, 2.14.1+cpu, sorts above 2.14.1, so pip takes it).
+TORCH_INDEX ?=
 # The 'viz' extra (matplotlib, PyAV) for plot/report/render: `make pipeline` and `make test`.
 VIZ_STAMP := $(VENV)/.installed-viz
 # Headless Chromium (Debian package) renders the report page in tests and for README stills.
@@ -44,7 +48,8 @@ $(DEV_STAMP): $(STAMP)
 install-dev: $(DEV_STAMP)
 
 $(STEMS_STAMP): $(DEV_STAMP)
-	$(PY) -m pip install --quiet -e '.[dev,stems]' $(STEMS_PINS)
+	$(PY) -m pip install --quiet -e '.[dev,stems]' $(STEMS_PINS) \
+		$(if $(TORCH_INDEX),--extra-index-url $(TORCH_INDEX))
 	touch $(STEMS_STAMP)
 
 install-stems: $(STEMS_STAMP)
@@ -55,9 +60,11 @@ $(VIZ_STAMP): $(STAMP)
 
 install-viz: $(VIZ_STAMP)
 
-# Debian's chromium, only when it is missing (needs root, as on CI).
+# Debian's chromium, only when no chromium is installed (needs root, as on CI), without the
+# recommended packages (with them, ~120 packages and upgrades of systemd and perl).
 browser:
-	test -x $(CHROMIUM) || (apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium)
+	test -x $(CHROMIUM) || command -v chromium >/dev/null || (apt-get update && \
+		DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends chromium)
 
 pipeline: $(STAMP) $(VIZ_STAMP)
 	test -d $(DEMO_RAW) || $(BIN)/dancedata synth aist $(DEMO_RAW) --sequences $(DEMO_SEQUENCES) --seed 0
