@@ -56,7 +56,7 @@ import sys
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, Literal
 
 import numpy as np
 
@@ -612,7 +612,7 @@ class RestrictedUnpickler:
                 f"{len(buffer)} bytes"
             )
         self._spend(needed, f"array {shape} {dtype}")
-        order = "F" if fortran else "C"
+        order: Literal["C", "F"] = "F" if fortran else "C"
         if count == 0:
             return np.zeros(shape, dtype=dtype, order=order)
         flat = np.frombuffer(buffer, dtype=dtype, count=count)
@@ -683,7 +683,7 @@ class RestrictedUnpickler:
             raise _refuse(f"to create a {_short.repr(cls)}: only allow-listed classes")
         if not isinstance(args, tuple) or not isinstance(kwargs, dict):
             raise _Malformed("NEWOBJ arguments are not a tuple and a dict")
-        made = cls.__new__(cls, *args, **kwargs)
+        made: object = cls.__new__(cls, *args, **kwargs)
         self._trusted_objects[id(made)] = made
         self._push(made)
 
@@ -715,8 +715,8 @@ class RestrictedUnpickler:
             value, closing = todo.pop()
             key = id(value)
             if closing:
-                children = self._children(value) or []
-                here = 1 + max((depth.get(id(c), 0) for c in children), default=0)
+                done = self._children(value) or []
+                here = 1 + max((depth.get(id(c), 0) for c in done), default=0)
                 if here > limit:
                     raise _refuse(f"containers nested more than {limit} deep")
                 depth[key] = here

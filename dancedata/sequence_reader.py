@@ -100,7 +100,8 @@ class SequenceReader:
         """The music-table row of ``seq_id``'s track (``path``, ``frame_start``/``frame_stop``
         in global ``audio/*`` rows, ...), a copy; None when the sequence names no music or its
         ``music_id`` is not in this version's music table (or there is no music table)."""
-        track = self._music_rows.get(self.sequence(seq_id).get("music_id"))
+        music_id = self.sequence(seq_id).get("music_id")
+        track = None if music_id is None else self._music_rows.get(music_id)
         return None if track is None else dict(track)
 
     def has_table(self, name: str) -> bool:
@@ -155,7 +156,8 @@ class SequenceReader:
 
     def _split_file_counts(self, scheme: str) -> dict[str, Any]:
         """Per split of ``scheme``, the counts ingest recorded for its split file ({} if none)."""
-        layout, current, seen = self._reader.layout, self.version, set()
+        layout, seen = self._reader.layout, set()
+        current: str | None = self.version
         while current and current not in seen:
             seen.add(current)
             try:

@@ -34,6 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from dancedata.errors import InputError
 
@@ -80,7 +81,7 @@ def project_points(
     rvec: np.ndarray,
     translation: np.ndarray,
     distortions: np.ndarray,
-    dtype: type = np.float64,
+    dtype: npt.DTypeLike = np.float64,
 ) -> np.ndarray:
     """Pixel coordinates (C, ..., 2) of world points (..., 3) seen by C cameras, as
     ``cv2.projectPoints`` computes them (which ignores K's skew entry; this keeps it).

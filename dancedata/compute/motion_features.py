@@ -289,7 +289,7 @@ HIP_WIDTH_M = float(np.linalg.norm(_LHIP - _RHIP))
 
 _HL, _SW, _HW = HUMERUS_M, SHOULDER_WIDTH_M, HIP_WIDTH_M
 # The 32 predicates, in the reference order: (kind, joints, threshold or angle range).
-_PREDICATES: tuple[tuple[str, tuple[str, ...], object], ...] = (
+_PREDICATES: tuple[tuple[str, tuple[str, ...], float | tuple[float, float]], ...] = (
     ("nmove", ("neck", "rhip", "lhip", "rwrist"), 1.8 * _HL),
     ("nmove", ("neck", "lhip", "rhip", "lwrist"), 1.8 * _HL),
     ("nplane", ("chest", "neck", "neck", "rwrist"), 0.2 * _HL),
@@ -389,6 +389,7 @@ def geometric_feature_frames(
                 a, b = j2 - j1, j4 - j3
                 cos = _dot(a, b) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
                 angle = np.degrees(np.arccos(cos))
+                assert isinstance(arg, tuple)  # an angle predicate carries (low, high)
                 low, high = arg
                 out[:, col] = (angle > low) & (angle < high)
     return out

@@ -377,7 +377,8 @@ def _follow_tracklets(
             if t == current or gap <= 0 or gap > relink_gap:
                 continue
             cand = boxes[per_frame[t][start]]
-            dist = float(np.linalg.norm(_centre(cand) - _centre(box)) / max(_diag(box), 20.0))
+            scale = max(float(_diag(box)), 20.0)
+            dist = float(np.linalg.norm(_centre(cand) - _centre(box)) / scale)
             key = (gap + dist, t)
             if best is None or key < best:
                 best = key
@@ -480,7 +481,7 @@ def track_dancer(
     joint_ok = (sel[..., 2] > min_conf) & np.isfinite(sel[..., :2]).all(axis=-1)
     coords[have] = np.where(joint_ok[..., None], sel[..., :2], np.nan)
     conf[have] = np.where(joint_ok, sel[..., 2], 0.0)
-    mask = np.isfinite(coords).all(axis=-1)
+    mask = np.asarray(np.isfinite(coords).all(axis=-1))
     return TrackedPose(
         coords=coords,
         conf=conf,

@@ -205,7 +205,7 @@ class BvhSkeleton:
     @property
     def has_position_channels(self) -> np.ndarray:
         """(J,) bool: the joint has at least one position channel."""
-        return (self._position_columns >= 0).any(axis=1)
+        return np.asarray((self._position_columns >= 0).any(axis=1))
 
     def same_hierarchy(self, other: BvhSkeleton, atol: float = 1e-6) -> bool:
         """Names, parents, channels, offsets and End Sites agree (lengths within ``atol``)."""
@@ -468,7 +468,7 @@ def _parse_hierarchy(toks: Words, path: str | Path | None) -> tuple[BvhSkeleton,
             raise fail(tok[1] if tok else line, f"expected '{{' after {what}, found {found}")
 
     def read_numbers(line: int, count: int, what: str) -> list[float]:
-        out = []
+        out: list[float] = []
         for _ in range(count):
             tok = toks.peek()
             if tok is None or tok[1] != line and _is_structure(tok[0]):
@@ -654,6 +654,7 @@ def _parse_motion_header(
         start = pos + 1
         line_no += 1
         blank = _BLANK_RUN.match(data, start, end)
+        assert blank is not None  # \s* matches, if only the empty string
         if blank.end() > start:  # skip blank lines in one step, counting them
             if blank.end() == end and not src.complete:
                 src.out_of_data(line_no)
@@ -818,7 +819,7 @@ def _parse_motion_strict(
                 f"{n_frames}; --frames present reads all {present} rows",
                 path,
             )
-        row = []
+        row: list[float] = []
         for match in _VALUE.finditer(block, first.start(), eol):
             if len(row) == n_channels:
                 break

@@ -43,7 +43,9 @@ def skeleton_attrs(
 
 def is_bvh_skeleton(attrs: dict[str, Any] | None) -> bool:
     """The skeleton attrs carry a BVH channel layout."""
-    return bool(attrs) and attrs.get("kind") == SKELETON_KIND and "channels" in attrs
+    if not attrs:
+        return False
+    return attrs.get("kind") == SKELETON_KIND and "channels" in attrs
 
 
 def skeleton_from_attrs(attrs: dict[str, Any]) -> BvhSkeleton:

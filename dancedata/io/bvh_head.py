@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from typing import BinaryIO, NoReturn, TypeVar
+from pathlib import Path
+from typing import NoReturn, Protocol, TypeVar
 
 from dancedata.errors import InputError
 
@@ -41,6 +42,7 @@ __all__ = [
     "MAX_WORD_BYTES",
     "HeadBytes",
     "NeedMore",
+    "ReadsInto",
     "Words",
     "decode",
     "read_head",
@@ -74,11 +76,17 @@ _MOTION_AT = re.compile(rb"(?i)[ \t]*MOTION[ \t]*\r?(?=\n|\Z)")
 _MOTION_LINE = re.compile(rb"(?im)^[ \t]*MOTION[ \t]*\r?(?=\n|\Z)")
 
 
+class ReadsInto(Protocol):
+    """A binary file opened for reading (``open(path, "rb")``): all :func:`read_head` uses."""
+
+    def readinto(self, buffer: memoryview, /) -> int | None: ...
+
+
 class NeedMore(Exception):
     """The head goes on past the bytes read so far: read more of the file and parse again."""
 
 
-def decode(raw: bytes) -> str:
+def decode(raw: bytes | bytearray) -> str:
     """UTF-8, else Latin-1 (which decodes any bytes)."""
     try:
         return raw.decode("utf-8")
@@ -98,7 +106,7 @@ class HeadBytes:
     """The first bytes of a BVH file, ``data``, of which at most :data:`MAX_HEADER_BYTES` are
     looked at; ``at_eof`` says whether ``data`` is the whole file."""
 
-    def __init__(self, data: bytes | bytearray, at_eof: bool, path: object) -> None:
+    def __init__(self, data: bytes | bytearray, at_eof: bool, path: str | Path | None) -> None:
         self.data = data
         self.end = min(len(data), MAX_HEADER_BYTES)
         self.complete = at_eof and len(data) <= MAX_HEADER_BYTES
@@ -216,6 +224,8 @@ class Words:
         """Queue the next word of a line longer than a chunk (``scan`` is at that word)."""
         head, data = self.head, self.data
         match = _WORD.match(data, self.scan, head.end)
+        # scan is at a non-space byte before head.end, so at least that byte matches
+        assert match is not None
         if match.end() == head.end and not head.complete:
             head.out_of_data(self.line)
         word = match.group()
@@ -268,7 +278,7 @@ class Words:
             self.pos += 1
 
 
-def _grown(handle: BinaryIO, data: bytearray, size: int) -> bytearray:
+def _grown(handle: ReadsInto, data: bytearray, size: int) -> bytearray:
     """``data`` followed by the file's next bytes, up to ``size`` bytes in all (fewer only at
     the end of the file); read in place, so growing costs no second copy of the new part."""
     out = bytearray(size)
@@ -284,7 +294,7 @@ def _grown(handle: BinaryIO, data: bytearray, size: int) -> bytearray:
     return out
 
 
-def read_head(handle: BinaryIO, parse: Callable[[bytearray, bool], _T]) -> tuple[bytearray, _T]:
+def read_head(handle: ReadsInto, parse: Callable[[bytearray, bool], _T]) -> tuple[bytearray, _T]:
     """``parse(prefix, at_eof)`` on a growing prefix of ``handle`` (1 MiB, then 4× more, at
     most :data:`MAX_HEADER_BYTES` + 1 bytes, grown in place) until it no longer raises
     :class:`NeedMore`. Returns the prefix read and what ``parse`` returned."""

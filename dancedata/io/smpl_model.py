@@ -164,7 +164,7 @@ class _SparseState:
             merged = dict(state[0] or {})
             merged.update(state[1] or {})
             state = merged
-        self.state = state if isinstance(state, dict) else {}
+        self.state: dict[str, Any] = state if isinstance(state, dict) else {}
 
     def dense(self) -> np.ndarray:
         state = self.state
