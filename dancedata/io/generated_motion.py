@@ -42,6 +42,7 @@ __all__ = [
     "GeneratedMotion",
     "find_generated_file",
     "generated_frame_limit",
+    "read_generated_arrays",
     "read_generated_motion",
 ]
 
@@ -132,7 +133,9 @@ def _read_npy_header(fh: Any, where: str, path: Path) -> tuple[tuple[int, ...], 
         else:
             shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
     except Exception as exc:  # ValueError, EOFError, SyntaxError, ...: not a .npy header
-        raise InputError(f"{where}: not a numpy array ({type(exc).__name__})", path) from None
+        raise InputError(
+            f"cannot read as a numpy file ({where}: {type(exc).__name__})", path
+        ) from None
     return tuple(int(n) for n in shape), dtype
 
 
@@ -179,13 +182,13 @@ def _check_npz_members(path: Path, max_frames: int | None) -> None:
                 shape, dtype = _read_npy_header(member, where, path)
                 if dtype.hasobject:
                     raise InputError(f"{where}: object arrays (pickles) are not read", path)
-                _check_shape(shape, dtype, where, path, max_frames)
                 claimed = int(np.prod(shape, dtype=object)) * dtype.itemsize
                 if claimed > info.file_size:
                     raise InputError(
                         f"{where} claims {shape} {dtype} but holds {info.file_size} bytes",
                         path,
                     )
+                _check_shape(shape, dtype, where, path, max_frames)
 
 
 class _ObjectDtype:
@@ -257,7 +260,10 @@ def _read_pickled_npy(path: Path, offset: int) -> dict[str, Any]:
     return value
 
 
-def _read_arrays(path: Path, max_frames: int | None = None) -> dict[str, np.ndarray]:
+def read_generated_arrays(path: Path, max_frames: int | None = None) -> dict[str, np.ndarray]:
+    """The arrays of one generated-motion file by name (``array`` for a bare ``.npy``), every
+    declared shape checked against ``max_frames`` first (module docstring); InputError naming
+    the file otherwise."""
     suffix = path.suffix.lower()
     try:
         if suffix == ".npy":
@@ -333,7 +339,7 @@ def read_generated_motion(path: str | Path, max_frames: int | None = None) -> Ge
     else, naming the file and what was found. ``max_frames`` (see
     :func:`generated_frame_limit`) refuses a file declaring more frames, before loading it."""
     path = Path(path)
-    data = _read_arrays(path, max_frames)
+    data = read_generated_arrays(path, max_frames)
     positions = None
     for key in _POSITION_KEYS:
         if key in data:
