@@ -2,9 +2,10 @@
 
 Each case gets its own folder holding a fresh copy of one small featurized store (copied, never
 hard-linked: a case may edit files in place), a ``work`` folder for its planted files, an empty
-``cwd`` the commands run in and a feature cache. Each command runs as ``python -m dancedata.cli``
-in a subprocess (its own session, killed with its children on timeout), then again with
-``--json`` when the case asks. It fails on
+``cwd`` the commands run in and a feature cache. Each command runs as the ``dancedata`` command
+in a subprocess (``python -c`` of a wrapper calling ``dancedata.cli.main.run``, in its own
+session, killed with its children on timeout), then again with ``--json`` when the case asks.
+It fails on
 
 * a traceback anywhere in the output, an exit code other than 0 or 1 or other than the case's,
   an error not matching the case's regular expression, more than 20 kB of output;
@@ -14,7 +15,8 @@ in a subprocess (its own session, killed with its children on timeout), then aga
 * any file created, changed or removed in the case folder outside the store copy, the cache and
   the command's declared output folder (the planted files and the ``cwd`` included), or in the
   folder holding the case folders;
-* a peak resident set above 1 GB: the child's own ``ru_maxrss``, from ``wait4`` on its pid.
+* a peak resident set above 1 GB: the child's own ``VmHWM``, written by the wrapper at exit
+  (``ru_maxrss`` would not do: it keeps the forking pytest's size across ``exec``).
 
 ``HOSTILE_RECORD=file.jsonl`` appends one line per command run (case, argv, exit, first line of
 the error, peak RSS, CPU seconds, files written outside) for before/after tables.
@@ -40,6 +42,24 @@ from tests.helpers import REPO
 CASES = all_cases()
 MAX_RSS_BYTES = 1 << 30
 MAX_OUTPUT_BYTES = 20_000
+# The command runs in-process under this wrapper, which writes its own peak RSS (VmHWM of its
+# own address space, not inherited from pytest) when it exits; ``run`` ends through the atexit
+# handlers, so the figure is written on every path but a kill.
+WRAPPER = """\
+import atexit, os, sys
+def _peak():
+    with open('/proc/self/status') as fh:
+        kb = fh.read().split('VmHWM:')[1].split()[0]
+    with open(os.environ['HOSTILE_PEAK_FILE'], 'w') as out:
+        out.write(kb)
+atexit.register(_peak)
+sys.argv = ['dancedata', *sys.argv[1:]]
+try:
+    from dancedata.cli.main import run
+except ImportError:  # a checkout older than run()
+    from dancedata.cli.main import main as run
+run()
+"""
 
 
 def _snapshot(root: Path, skip: set[Path]) -> dict[str, tuple]:
@@ -72,10 +92,13 @@ def _run(argv: list[str], cwd: Path, env: dict[str, str], io_dir: Path, timeout:
     command."""
     import subprocess
 
-    out_path, err_path = io_dir / "stdout", io_dir / "stderr"
+    out_path, err_path, peak_path = io_dir / "stdout", io_dir / "stderr", io_dir / "peak"
+    peak_path.unlink(missing_ok=True)
+    env = {**env, "HOSTILE_PEAK_FILE": str(peak_path)}
+    polled = 0
     with out_path.open("wb") as out, err_path.open("wb") as err:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "dancedata.cli", *argv],
+            [sys.executable, "-c", WRAPPER, *argv],
             cwd=cwd, env=env, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
             start_new_session=True,
         )  # fmt: skip
@@ -86,16 +109,27 @@ def _run(argv: list[str], cwd: Path, env: dict[str, str], io_dir: Path, timeout:
             if pid:
                 code = os.waitstatus_to_exitcode(status)
                 break
+            polled = max(polled, _vm_hwm(proc.pid))
             if time.monotonic() > deadline:
                 os.killpg(proc.pid, signal.SIGKILL)
                 _, status, usage = os.wait4(proc.pid, 0)
                 break
             time.sleep(0.05)
         proc.returncode = -1 if code is None else code  # reaped by wait4 above
-        rss = usage.ru_maxrss * 1024  # kB on Linux
         cpu = usage.ru_utime + usage.ru_stime
+    # the wrapper's own figure; polled /proc/PID/status when it was killed before writing it
+    rss = int(peak_path.read_text()) * 1024 if peak_path.is_file() else polled
     read = lambda p: p.read_bytes().decode("utf-8", "replace")  # noqa: E731
     return code, read(out_path), read(err_path), rss, cpu
+
+
+def _vm_hwm(pid: int) -> int:
+    """Peak RSS in bytes of a running process (0 once it is gone)."""
+    try:
+        with open(f"/proc/{pid}/status") as fh:
+            return int(fh.read().split("VmHWM:")[1].split()[0]) * 1024
+    except (OSError, IndexError, ValueError):
+        return 0
 
 
 def _first_error(stderr: str) -> str:
