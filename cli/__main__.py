@@ -1,5 +1,5 @@
 """``python -m dancedata.cli``: the same as the ``dancedata`` command."""
 
-from dancedata.cli.main import main
+from dancedata.cli.main import run
 
-main()
+run()

@@ -11,7 +11,14 @@ How a run ends (``main``):
 - a usage error (unknown option, bad value): click's message on stderr, exit 2;
 - Ctrl-C (SIGINT): the line ``interrupted; run again to resume`` on stderr, exit 130. By then the
   writer has removed its temporary version (or kept it for resuming, for resumable builds) and
-  released the store lock, as on any other error.
+  released the store lock, as on any other error;
+- an OSError naming a path (a component over 255 bytes, not a folder, no permission) or a file
+  name that is not UTF-8: one line ``error: <path>: <problem>``, exit 1.
+
+``main`` ends with ``SystemExit`` (so it can be called in-process); the ``dancedata`` command and
+``python -m dancedata.cli`` run :func:`run`, which ends every one of these paths through
+:func:`_exit` (atexit handlers, flush, ``os._exit``), so native threads alive at exit cannot turn
+the exit code into SIGABRT (134).
 
 When the command line holds ``--json``, each of these failures also prints one JSON object on
 **stdout**, where the success summary would have gone, so that a caller parsing stdout always
@@ -123,6 +130,76 @@ def _fail(
     sys.exit(exit_code)
 
 
+def _exit(code: int) -> None:
+    """End the process with ``code`` on every path, without interpreter teardown.
+
+    Python's atexit handlers run and both streams are flushed, then ``os._exit``: the C/C++
+    runtime's static destructors never run. Native libraries (pyarrow's thread pools, the
+    jemalloc background thread, BLAS) keep threads alive to the end, and tearing their pools
+    down while a thread is still joinable aborts the process with SIGABRT ("terminate called
+    without an active exception", exit 134) after the command's output was printed, in a few
+    runs in a hundred under CPU load. Nothing of ours needs that teardown."""
+    import atexit
+    import contextlib
+    import os
+
+    try:
+        atexit._run_exitfuncs()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing to say
+                stream.flush()
+        os._exit(code)
+
+
+def run() -> None:
+    """The ``dancedata`` command: :func:`main`, then :func:`_exit` with its exit code, whatever
+    the path (success, error, usage, Ctrl-C, an unexpected exception's traceback)."""
+    code: int = 1
+    try:
+        main()
+        code = 0
+    except SystemExit as exc:
+        if exc.code is None or isinstance(exc.code, int):
+            code = exc.code or 0
+        else:  # sys.exit("message"): Python prints it and exits 1
+            print(exc.code, file=sys.stderr)
+            code = 1
+    except KeyboardInterrupt:
+        code = EXIT_INTERRUPTED
+    except BrokenPipeError:  # the reader of stdout went away (`| head`): nothing to say
+        code = 1
+    except BaseException:
+        import traceback
+
+        traceback.print_exc()
+        code = 1
+    _exit(code)
+
+
+def _short_path(name: object) -> str:
+    """A file name for a one-line message: decoded, at most 160 characters (middle elided)."""
+    import os
+
+    text = os.fsdecode(name) if isinstance(name, str | bytes) else str(name)
+    text = text.encode("utf-8", "backslashreplace").decode("utf-8")  # non-UTF-8 bytes shown
+    return text if len(text) <= 160 else f"{text[:80]}…{text[-79:]}"
+
+
+def _path_problem(exc: BaseException) -> tuple[str | None, str] | None:
+    """(file, problem) when ``exc`` is about a path the user gave rather than a bug: an OSError
+    naming a file (a component over 255 bytes, a path that is not a folder, no permission,
+    a loop of links, ...) or a file name that is not UTF-8 reaching a writer; else None."""
+    if isinstance(exc, OSError) and exc.filename is not None:
+        reason = exc.strerror or type(exc).__name__
+        if exc.errno == 36:  # ENAMETOOLONG
+            reason += " (a path component is over 255 bytes)"
+        return _short_path(exc.filename), reason
+    if isinstance(exc, UnicodeEncodeError) and "surrogate" in str(exc.reason):
+        return None, "a file name is not valid UTF-8; rename it (e.g. convmv -t utf-8)"
+    return None
+
+
 def main() -> None:
     """Console entry point: see the module docstring for exit codes and error output."""
     from dancedata.errors import DancedataError
@@ -149,10 +226,15 @@ def main() -> None:
         from dancedata.store.fs import storage_problem
 
         problem = storage_problem(exc)
-        if problem is None:
+        if problem is not None:
+            typer.echo(f"error: {problem}", err=True)
+            _fail(problem, 1, as_json=as_json, kind="StorageError")
+        path_problem = _path_problem(exc)
+        if path_problem is None:
             raise
-        typer.echo(f"error: {problem}", err=True)
-        _fail(problem, 1, as_json=as_json, kind="StorageError")
+        file, problem = path_problem
+        typer.echo(f"error: {file}: {problem}" if file else f"error: {problem}", err=True)
+        _fail(problem, 1, as_json=as_json, kind="PathError", file=file)
     else:
         # standalone_mode=False: typer returns the code of an Exit (130 for Ctrl-C), or the
         # command's return value (None).

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dancedata.errors import StoreError
+from dancedata.seq_ids import seq_id_problem
 from dancedata.store.layout import warn_once
 from dancedata.store.reader import VersionReader
 
@@ -79,7 +80,15 @@ class SequenceReader:
 
     @cached_property
     def _seq_rows(self) -> dict[str, dict[str, Any]]:
-        return {row["seq_id"]: row for row in self.sequences.to_pylist()}
+        """The sequences table by ``seq_id``; StoreError naming the table for an id outside the
+        character set of :mod:`dancedata.seq_ids` (ids name files: never a path or a pattern)."""
+        rows: dict[str, dict[str, Any]] = {}
+        for row in self.sequences.to_pylist():
+            problem = seq_id_problem(row.get("seq_id"))
+            if problem is not None:
+                raise StoreError(f"sequences table: {problem}", self.path)
+            rows[row["seq_id"]] = row
+        return rows
 
     @cached_property
     def _music_rows(self) -> dict[str, dict[str, Any]]:

@@ -70,6 +70,7 @@ LAYER_OF: dict[str, tuple[str, str]] = {
     "skeleton (compute) for joint positions"),
     "dancedata.bvh_ops": ("compute", "operations on a parsed BVH clip: io.bvh + compute arrays"),
     "dancedata.aist_names": ("compute", "AIST++ sequence-name parsing: pure string functions"),
+    "dancedata.seq_ids": ("compute", "the seq_id character set, checked at ingest and on read"),
     "dancedata.batching": ("compute", "length bucketing of windows: pure index arithmetic"),
     "dancedata.window_fit": ("compute", "crop/pad a window to a fixed length: pure arrays"),
     "dancedata.windows": ("compute", "slices the arrays it is given; never reads a store"),

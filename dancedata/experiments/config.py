@@ -103,6 +103,144 @@ _CHOICES = {
     ("metrics", "kinetic_mode"): ("parity", "corrected"),
 }
 
+# Every key's type and range (checked before any value is used; bool is never taken as a
+# number nor a string as a bool). ``str``/``int`` lists accept one bare value too.
+MAX_CONFIG_BYTES = 256 << 10  # a config is a few hundred bytes; 256 KiB is far above any real one
+MAX_LINE_CHARS = 10_000  # tomllib is quadratic in the parts of one dotted key: keep lines short
+MAX_CONFIG_DEPTH = 8  # tables and arrays inside each other (the layout above needs 3)
+MAX_KEYFRAMES = 1000  # keyframes per measure: a measure at 60 fps has ~120 frames
+MAX_LIST_ITEMS = 1000
+_NAME = r"[A-Za-z0-9_][A-Za-z0-9_.+=@-]{0,127}"
+_TYPES: dict[tuple[str, ...], tuple[str, Any]] = {
+    ("id",): ("name", None),
+    ("tables",): ("str_list", None),
+    ("store",): ("str_or_none", None),
+    ("n_keyframes",): ("int_list", (2, MAX_KEYFRAMES)),
+    ("rows",): ("str_list", None),
+    ("split", "scheme"): ("str", None),
+    ("split", "eval"): ("str_list", None),
+    ("split", "train"): ("str", None),
+    ("split", "exclude_genres"): ("str_list", None),
+    ("keyframes", "n_counts_edges"): ("bool", None),
+    ("keyframes", "G"): ("int", (0, 10_000)),
+    ("keyframes", "peak_source"): ("str", None),
+    ("keyframes", "fill"): ("str", None),
+    ("keyframes", "stem_weights"): ("weights", (0.0, 1e6)),
+    ("keyframes", "nmfd_weights"): ("weights", (0.0, 1e6)),
+    ("keyframes", "normalize"): ("bool", None),
+    ("keyframes", "audio_scope"): ("str", None),
+    ("keyframes", "dp_distance"): ("str", None),
+    ("keyframes", "combine"): ("str", None),
+    ("keyframes", "euler_branch"): ("str", None),
+    ("inbetween", "bezier_group"): ("str", None),
+    ("inbetween", "bezier_param"): ("str", None),
+    ("inbetween", "bezier_trans"): ("str", None),
+    ("inbetween", "bezier_solver"): ("str", None),
+    ("metrics", "names"): ("str_list", None),
+    ("metrics", "mse_space"): ("str", None),
+    ("metrics", "mse_wrap"): ("bool", None),
+    ("metrics", "mse_reduce"): ("str", None),
+    ("metrics", "fid_unit"): ("str", None),
+    ("metrics", "fid_reference"): ("str", None),
+    ("metrics", "kinetic_mode"): ("str", None),
+    ("metrics", "geometric_frame_time"): ("float", (1e-6, 10.0)),
+    ("metrics", "normalize"): ("bool", None),
+    ("metrics", "drop_constant_ref_columns"): ("bool", None),
+    ("metrics", "smpl_model"): ("str_or_none", None),
+    ("generated",): ("str_table", None),
+}
+_KINDS = {
+    "name": "a plain name (letters, digits, _ . + = @ -; no / or ..)",
+    "str": "a string",
+    "str_or_none": "a string",
+    "str_list": "a string or a list of strings",
+    "int": "an integer",
+    "int_list": "an integer or a list of integers",
+    "float": "a number",
+    "bool": "true or false",
+    "weights": "a table of numbers",
+    "str_table": "a table of strings",
+}
+
+
+def _depth(value: Any, limit: int) -> int:
+    """Nesting depth of tables and arrays, without recursion (a hostile file can nest deeply)."""
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        node, level = stack.pop()
+        if isinstance(node, dict | list):
+            deepest = max(deepest, level)
+            if deepest > limit:
+                return deepest
+            children = node.values() if isinstance(node, dict) else node
+            stack.extend((child, level + 1) for child in children)
+    return deepest
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _shown(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _type_ok(kind: str, value: Any, items: list[Any]) -> bool:
+    """Whether ``value`` (``items``: it as a list) has the type of ``kind`` (ranges apart)."""
+    import math
+    import re
+
+    if kind == "name":
+        return isinstance(value, str) and bool(re.fullmatch(_NAME, value)) and ".." not in value
+    if kind == "str":
+        return isinstance(value, str)
+    if kind == "str_or_none":
+        return value is None or isinstance(value, str)
+    if kind == "str_list":
+        return all(isinstance(v, str) for v in items)
+    if kind == "bool":
+        return isinstance(value, bool)
+    if kind in ("int", "int_list"):
+        return all(_is_int(v) for v in items)
+    if kind == "float":
+        return _is_number(value) and math.isfinite(value)
+    if kind == "weights":
+        return isinstance(value, dict) and all(
+            isinstance(k, str) and _is_number(v) and math.isfinite(v) for k, v in value.items()
+        )
+    if kind == "str_table":
+        return isinstance(value, dict) and all(
+            isinstance(k, str) and isinstance(v, str) for k, v in value.items()
+        )
+    raise AssertionError(kind)  # pragma: no cover - every kind of _TYPES is above
+
+
+def _check_types(data: dict[str, Any], source: str) -> None:
+    """Refuse any value of the wrong type or out of range: one line naming the key."""
+    for keys, (kind, bounds) in _TYPES.items():
+        value: Any = data
+        for key in keys:
+            value = value[key]
+        where = ".".join(keys)
+        items = value if isinstance(value, list) else [value]
+        if kind in ("str_list", "int_list") and len(items) > MAX_LIST_ITEMS:
+            raise InputError(f"{where} has {len(items)} items (at most {MAX_LIST_ITEMS})", source)
+        if not _type_ok(kind, value, items):
+            raise InputError(f"{where} = {_shown(value)}: must be {_KINDS[kind]}", source)
+        if bounds is None:
+            continue
+        lo, hi = bounds
+        named = value.items() if kind == "weights" else ((where, v) for v in items)
+        for name, number in named:
+            if not lo <= number <= hi:
+                label = f"{where}.{name}" if kind == "weights" else where
+                raise InputError(f"{label} = {_shown(number)}: must be in [{lo}, {hi}]", source)
+
 
 @dataclass(frozen=True)
 class RowKey:
@@ -214,9 +352,20 @@ def _as_list(value: Any) -> list[Any]:
 def build_config(raw: dict[str, Any], source: str = "<config>",
                  path: Path | None = None) -> ExperimentConfig:  # fmt: skip
     """Validate ``raw`` (a parsed TOML document), fill the defaults, expand ``[matrix]``."""
+    if _depth(raw, MAX_CONFIG_DEPTH) > MAX_CONFIG_DEPTH:
+        raise InputError(
+            f"tables or arrays nested deeper than {MAX_CONFIG_DEPTH} levels", source
+        )
     raw = dict(raw)
     matrix = raw.pop("matrix", None)
+    if matrix is not None and not isinstance(matrix, dict):
+        raise InputError("matrix must be a table", source)
     data = _merge(DEFAULTS, raw, "", source)
+    _check_types(data, source)
+    for part in ("keyframes", "inbetween"):
+        values = matrix.get(part) if matrix is not None else None
+        if values is not None and not all(isinstance(v, str) for v in _as_list(values)):
+            raise InputError(f"matrix.{part} must be a string or a list of strings", source)
     rows = [str(r) for r in _as_list(data["rows"])]
     if matrix is not None:
         unknown = sorted(set(matrix) - {"keyframes", "inbetween"})
@@ -271,7 +420,11 @@ def apply_override(raw: dict[str, Any], assignment: str) -> None:
         value = tomllib.loads(f"v = {text.strip()}")["v"]
     except tomllib.TOMLDecodeError:
         value = text.strip()
+    except RecursionError:
+        raise InputError(f"--set {key.strip()}: the value is nested too deeply") from None
     parts = key.strip().split(".")
+    if len(parts) > MAX_CONFIG_DEPTH:
+        raise InputError(f"--set {key.strip()[:80]}: more than {MAX_CONFIG_DEPTH} levels")
     node = raw
     for part in parts[:-1]:
         node = node.setdefault(part, {})
@@ -284,15 +437,24 @@ def load_config(path: str | Path, overrides: list[str] | None = None) -> Experim
     """Read and validate a TOML experiment config; InputError naming the file otherwise."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open("rb") as fh:
+            data = fh.read(MAX_CONFIG_BYTES + 1)
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise InputError("experiment config not found", path) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read experiment config: {exc}", path) from None
+    if len(data) > MAX_CONFIG_BYTES:
+        raise InputError(f"experiment config is larger than {MAX_CONFIG_BYTES} bytes", path)
+    longest = max((len(line) for line in text.splitlines()), default=0)
+    if longest > MAX_LINE_CHARS:
+        raise InputError(f"a line of {longest} characters (at most {MAX_LINE_CHARS})", path)
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML: {exc}", path) from None
+    except RecursionError:
+        raise InputError("not valid TOML: arrays or tables nested too deeply", path) from None
     for assignment in overrides or []:
         apply_override(raw, assignment)
     return build_config(raw, str(path), path)

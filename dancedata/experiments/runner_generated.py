@@ -38,31 +38,40 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def _euler75_npy(path: Path) -> np.ndarray | None:
-    """(F, 75) rows of a ``.npy`` in the thesis layout, or None for any other layout."""
+def _euler75_npy(path: Path, max_frames: int) -> np.ndarray | None:
+    """(F, 75) rows of a ``.npy`` in the thesis layout, or None for any other layout; a file
+    declaring more than ``max_frames`` frames is refused before it is read."""
     if path.suffix.lower() != ".npy":
         return None
     try:
         values = np.load(path, allow_pickle=False, mmap_mode="r")
     except (OSError, ValueError) as exc:
+        if "allow_pickle" in str(exc):
+            return None  # a pickled .npy: read_generated_motion knows the one safe layout
         raise InputError(f"unreadable generated motion: {exc}", path) from None
     if values.ndim == 3 and values.shape[0] == 1:
         values = values[0]
     if values.ndim != 2 or values.shape[1] != 75:
         return None
+    if values.shape[0] > max_frames:
+        raise InputError(
+            f"{values.shape[0]} frames, more than the {max_frames} this sequence can use "
+            "(twice the ground truth + 1200)",
+            path,
+        )
     return np.asarray(values, dtype=np.float64)
 
 
-def _to_euler75(path: Path, order: Any) -> np.ndarray | str:
+def _to_euler75(path: Path, order: Any, max_frames: int) -> np.ndarray | str:
     """(F, 75) Euler rows of one generated file, or the reason it cannot give them."""
-    rows = _euler75_npy(path)
+    rows = _euler75_npy(path, max_frames)
     if rows is None:
         from dancedata.compute.motion_representations import euler_per_joint
         from dancedata.compute.rotations import axis_angle_to_rotmat
         from dancedata.experiments.evaluate_inputs import fact_rows_to_smpl
         from dancedata.io.generated_motion import read_generated_motion
 
-        motion = read_generated_motion(path)
+        motion = read_generated_motion(path, max_frames)
         if motion.fact_rows is not None:
             axis_angle, trans = fact_rows_to_smpl(motion.fact_rows)
         elif motion.axis_angle is not None:
@@ -105,7 +114,7 @@ class GeneratedOutputs:
                 "class M (trained model): no outputs given; pass --generated <row_key>@<N>=DIR "
                 "(one <seq_id>.npy|.npz|.pkl per sequence)"
             )
-        from dancedata.io.generated_motion import find_generated_file
+        from dancedata.io.generated_motion import find_generated_file, generated_frame_limit
 
         seqs = sorted(set(data.measure_seq[rows].tolist()))
         files = {s: find_generated_file(folder, data.sequences[s]["seq_id"]) for s in seqs}
@@ -121,7 +130,8 @@ class GeneratedOutputs:
             seq_id = data.sequences[s]["seq_id"]
             path = files[s]
             assert path is not None
-            x75 = _to_euler75(path, data.euler_order)
+            limit = generated_frame_limit(int(data.sequences[s]["n_frames"]))
+            x75 = _to_euler75(path, data.euler_order, limit)
             if isinstance(x75, str):
                 return x75
             mine = rows[data.measure_seq[rows] == s]

@@ -58,6 +58,7 @@ from dancedata.ingest.source import (
     StoredArray,
 )
 from dancedata.progress import progress
+from dancedata.seq_ids import check_seq_id
 from dancedata.store.arrays import FrameArrayWriter
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
@@ -246,6 +247,7 @@ def _write_version(
             try:
                 source.check_task(task)
                 record = source.accept(task, result.get())
+                check_seq_id(record.seq_id, task.path)
             except DancedataError as exc:
                 skips.fail_or_skip(exc, task.path)
                 continue

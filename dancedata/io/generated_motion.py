@@ -14,21 +14,37 @@ A folder of generated motion holds one file per sequence, named by sequence id
   ``full_pose`` / ``pred_position`` (F, J·3 or J, 3) in a pickle or ``.npz``.
 
 Pickles are read by the restricted unpickler (:mod:`dancedata.safe_pickle`), never by
-``pickle.load``; ``.npy``/``.npz`` with ``allow_pickle=False``. Every problem raises
+``pickle.load``; ``.npy``/``.npz`` with ``allow_pickle=False``, except the one pickled ``.npy``
+layout dance generators write, ``np.save(path, dict)`` (Bailando's ``{"pred_position": (F, 72)}``):
+its dict is read by the same restricted unpickler, admitting only that 0-d object array around
+a dict; any other object array is refused with how to convert it.
+
+Sizes are checked before loading: an ``.npy`` header or each ``.npz`` member header must declare
+at most ``max_frames`` frames (:func:`generated_frame_limit`: twice the ground truth plus 1200
+frames) and at most 1024 values a frame, an ``.npz`` at most 64 members. Every problem raises
 :class:`~dancedata.errors.InputError` naming the file. No unit or axis conversion happens here:
 the caller records what it assumes (frame rate, y up).
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from dancedata.errors import InputError
 
-__all__ = ["GENERATED_SUFFIXES", "GeneratedMotion", "find_generated_file", "read_generated_motion"]
+__all__ = [
+    "GENERATED_SUFFIXES",
+    "GeneratedMotion",
+    "find_generated_file",
+    "generated_frame_limit",
+    "read_generated_arrays",
+    "read_generated_motion",
+]
 
 GENERATED_SUFFIXES = (".npy", ".npz", ".pkl")
 _POSITION_KEYS = ("positions", "full_pose", "pred_position")
@@ -65,64 +81,204 @@ class GeneratedMotion:
 def find_generated_file(folder: Path, seq_id: str) -> Path | None:
     """``folder/<seq_id>.npy|.npz|.pkl`` (first found in that order); else the one file named
     ``<prefix>_<seq_id>.<suffix>`` (EDGE writes ``<epoch>_<name>.pkl``); else None. Several
-    prefixed files for one sequence are ambiguous: InputError."""
-    for suffix in GENERATED_SUFFIXES:
-        candidate = folder / f"{seq_id}{suffix}"
-        if candidate.is_file():
-            return candidate
+    prefixed files for one sequence are ambiguous: InputError.
+
+    Names are compared as strings with the folder's own entries (never a glob, never a path
+    built from ``seq_id``), so an id holding ``[``, ``*`` or ``../`` can only match a file of
+    exactly that name directly inside ``folder``; ids with a path separator match nothing."""
+    if not seq_id or "/" in seq_id or "\\" in seq_id or seq_id in (".", ".."):
+        return None
+    try:
+        entries = os.listdir(folder)
+    except OSError as exc:
+        raise InputError(f"cannot list the folder: {exc.strerror}", folder) from None
+    names = set(entries)
+    for suffix in (*GENERATED_SUFFIXES, ".pkl.npy"):  # Bailando saves <name>.pkl with np.save
+        name = f"{seq_id}{suffix}"
+        if name in names and (folder / name).is_file():
+            return folder / name
+    tails = tuple(f"_{seq_id}{suffix}" for suffix in GENERATED_SUFFIXES)
     prefixed = sorted(
-        p
-        for suffix in GENERATED_SUFFIXES
-        for p in folder.glob(f"*_{seq_id}{suffix}")
-        if p.is_file()
+        folder / name
+        for name in entries
+        if name.endswith(tails) and (folder / name).is_file()
     )
     if len(prefixed) > 1:
-        names = ", ".join(p.name for p in prefixed[:4])
-        raise InputError(f"several generated files for {seq_id} ({names}): keep one", folder)
+        names_shown = ", ".join(p.name for p in prefixed[:4])
+        raise InputError(f"several generated files for {seq_id} ({names_shown}): keep one", folder)
     return prefixed[0] if prefixed else None
 
 
 MAX_MEMBER_BYTES = 1 << 30  # one array of an .npz: far above any motion clip
+MAX_MEMBERS = 64  # arrays in one .npz (the layouts above use at most 4)
+MAX_ROW_VALUES = 1024  # numbers per frame: FACT rows are 225, SMPL-X positions 127 × 3
+FRAME_MARGIN = 1200  # frames beyond twice the ground truth (20 s at 60 fps)
 
 
-def _check_npz_members(path: Path) -> None:
-    """Refuse an .npz whose members claim more data than they hold, or more than
-    :data:`MAX_MEMBER_BYTES`, before numpy allocates anything (numpy allocates the claimed
-    shape first, then reads)."""
+def generated_frame_limit(gt_frames: int, src_fps: float | None = None,
+                          dst_fps: float | None = None) -> int:  # fmt: skip
+    """The most frames a generated file for a sequence of ``gt_frames`` ground-truth frames
+    may hold: twice the ground truth at the file's frame rate (``src_fps``; the store's
+    ``dst_fps`` when not given) plus :data:`FRAME_MARGIN`. Checked on the file's declared shapes
+    before anything is loaded, so a header claiming gigabytes costs nothing."""
+    ratio = (src_fps / dst_fps) if src_fps and dst_fps else 1.0
+    return int(2 * gt_frames * ratio) + FRAME_MARGIN
+
+
+def _read_npy_header(fh: Any, where: str, path: Path) -> tuple[tuple[int, ...], np.dtype]:
+    try:
+        version = np.lib.format.read_magic(fh)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+    except Exception as exc:  # ValueError, EOFError, SyntaxError, ...: not a .npy header
+        raise InputError(
+            f"cannot read as a numpy file ({where}: {type(exc).__name__})", path
+        ) from None
+    return tuple(int(n) for n in shape), dtype
+
+
+def _check_shape(shape: tuple[int, ...], dtype: np.dtype, where: str, path: Path,
+                 max_frames: int | None) -> None:  # fmt: skip
+    """Refuse a declared shape no motion layout has, or with more frames than allowed."""
+    dims = shape[1:] if len(shape) >= 2 and shape[0] == 1 else shape
+    frames = dims[0] if dims else 0
+    row = int(np.prod(dims[1:], dtype=object)) if len(dims) > 1 else 1
+    if len(dims) > 3 or row > MAX_ROW_VALUES:
+        raise InputError(f"{where}: shape {shape} is not (frames, values) motion", path)
+    if max_frames is not None and frames > max_frames:
+        raise InputError(
+            f"{where}: {frames} frames declared, more than the {max_frames} this sequence can "
+            "use (twice the ground truth + 1200)",
+            path,
+        )
+    if dtype.itemsize > 16:
+        raise InputError(f"{where}: dtype {dtype} is not a number type", path)
+
+
+def _check_npz_members(path: Path, max_frames: int | None) -> None:
+    """Refuse an .npz with more than :data:`MAX_MEMBERS` arrays, or whose members claim more
+    data than they hold, more than :data:`MAX_MEMBER_BYTES`, or more frames than
+    ``max_frames``, before numpy allocates anything (numpy allocates the claimed shape first,
+    then reads)."""
     import zipfile
 
     with zipfile.ZipFile(path) as archive:
-        for info in archive.infolist():
+        infos = archive.infolist()
+        if len(infos) > MAX_MEMBERS:
+            raise InputError(
+                f"an .npz of {len(infos)} members (at most {MAX_MEMBERS} arrays are read)", path
+            )
+        for info in infos:
             if info.file_size > MAX_MEMBER_BYTES:
                 raise InputError(
-                    f"member {info.filename} unpacks to {info.file_size} bytes "
+                    f"member {info.filename[:80]} unpacks to {info.file_size} bytes "
                     f"(at most {MAX_MEMBER_BYTES} are read)",
                     path,
                 )
             with archive.open(info) as member:
-                version = np.lib.format.read_magic(member)
-                read_header = (
-                    np.lib.format.read_array_header_1_0
-                    if version == (1, 0)
-                    else np.lib.format.read_array_header_2_0
-                )
-                shape, _, dtype = read_header(member)
+                where = f"member {info.filename[:80]}"
+                shape, dtype = _read_npy_header(member, where, path)
+                if dtype.hasobject:
+                    raise InputError(f"{where}: object arrays (pickles) are not read", path)
                 claimed = int(np.prod(shape, dtype=object)) * dtype.itemsize
                 if claimed > info.file_size:
                     raise InputError(
-                        f"member {info.filename} claims {shape} {dtype} but holds "
-                        f"{info.file_size} bytes",
+                        f"{where} claims {shape} {dtype} but holds {info.file_size} bytes",
                         path,
                     )
+                _check_shape(shape, dtype, where, path, max_frames)
 
 
-def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+class _ObjectDtype:
+    """Stands in for numpy's object dtype inside a pickled ``np.save`` of a dict: never a real
+    dtype, so no object array is ever built."""
+
+    def __setstate__(self, state: Any) -> None:
+        if not (isinstance(state, tuple) and len(state) == 8 and state[:7] == (
+                3, "|", None, None, None, -1, -1)):  # fmt: skip
+            raise InputError(f"object dtype state {str(state)[:80]} is not numpy's")
+
+
+def _make_dict_unpickler() -> Any:
+    """The restricted unpickler (:mod:`dancedata.safe_pickle`) plus exactly one shape of object
+    array: the 0-d array ``np.save(path, {...})`` writes around a dict (Bailando's outputs),
+    which yields the dict itself. Arrays inside the dict are built by the restricted path."""
+    from dancedata import safe_pickle
+
+    def dtype(*args: Any) -> Any:
+        if args[:1] == ("O8",) and len(args) == 3:
+            return _ObjectDtype()
+        return safe_pickle._dtype_call(args)
+
+    class DictUnpickler(safe_pickle.RestrictedUnpickler):
+        def find_class(self, module: str, name: str) -> Any:
+            if (module, name) == ("numpy", "dtype"):
+                return dtype
+            return super().find_class(module, name)
+
+        def _array_from_state(self, state: Any) -> Any:
+            body = state[1:] if isinstance(state, tuple) and len(state) == 5 else state
+            if isinstance(body, tuple) and len(body) == 4 and isinstance(body[1], _ObjectDtype):
+                shape, _, fortran, data = body
+                if shape != () or fortran or not (
+                    isinstance(data, list) and len(data) == 1 and isinstance(data[0], dict)
+                ):
+                    raise InputError("an object array other than np.save's 0-d dict")
+                return data[0]
+            return super()._array_from_state(state)
+
+    return DictUnpickler
+
+
+def _read_pickled_npy(path: Path, offset: int) -> dict[str, Any]:
+    """The dict of a ``.npy`` written by ``np.save(path, dict)``, read by the restricted
+    unpickler; InputError naming the layout and how to convert it for anything else."""
+    import io
+
+    from dancedata.safe_pickle import DEFAULT_LIMITS
+
+    convert = (
+        "a pickled .npy must be np.save of a dict of arrays (Bailando writes "
+        "{'pred_position': (F, 72)}); else convert it where you trust it: "
+        "np.savez(OUT, **np.load(IN, allow_pickle=True).item())"
+    )
+    size = path.stat().st_size
+    if size > DEFAULT_LIMITS.max_file_bytes:
+        raise InputError(f"a pickled .npy of {size} bytes; {convert}", path)
+    with path.open("rb") as fh:
+        fh.seek(offset)
+        data = fh.read()
+    try:
+        value = _make_dict_unpickler()(io.BytesIO(data)).load()
+    except Exception as exc:  # the unpickler's refusals and malformed data: one line
+        reason = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
+        raise InputError(f"unsafe or unreadable pickle ({reason}); {convert}", path) from None
+    if not isinstance(value, dict):
+        raise InputError(f"the pickle holds a {type(value).__name__}; {convert}", path)
+    return value
+
+
+def read_generated_arrays(path: Path, max_frames: int | None = None) -> dict[str, np.ndarray]:
+    """The arrays of one generated-motion file by name (``array`` for a bare ``.npy``), every
+    declared shape checked against ``max_frames`` first (module docstring); InputError naming
+    the file otherwise."""
     suffix = path.suffix.lower()
     try:
-        if suffix == ".npy":  # mmap checks the claimed shape against the file's size
+        if suffix == ".npy":
+            with path.open("rb") as fh:
+                shape, dtype = _read_npy_header(fh, "header", path)
+                offset = fh.tell()
+            if dtype.hasobject:
+                data = _read_pickled_npy(path, offset)
+                return {str(k): np.asarray(v) for k, v in data.items()
+                        if isinstance(v, np.ndarray)}  # fmt: skip
+            _check_shape(shape, dtype, "the array", path, max_frames)
+            # mmap checks the claimed shape against the file's size
             return {"array": np.array(np.load(path, mmap_mode="r", allow_pickle=False))}
         if suffix == ".npz":
-            _check_npz_members(path)
+            _check_npz_members(path, max_frames)
             with np.load(path, allow_pickle=False) as npz:
                 return {k: np.asarray(npz[k]) for k in npz.files}
     except InputError:
@@ -135,13 +291,16 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
 
         data = load_restricted(path)
         if isinstance(data, np.ndarray):
-            return {"array": data}
+            data = {"array": data}
         if not isinstance(data, dict):
             raise InputError(
                 f"a generated-motion pickle must hold a dict of arrays, not {type(data).__name__}",
                 path,
             )
-        return {str(k): np.asarray(v) for k, v in data.items() if isinstance(v, np.ndarray)}
+        arrays = {str(k): np.asarray(v) for k, v in data.items() if isinstance(v, np.ndarray)}
+        for key, value in arrays.items():
+            _check_shape(value.shape, value.dtype, key, path, max_frames)
+        return arrays
     raise InputError(f"generated motion must be one of {', '.join(GENERATED_SUFFIXES)}", path)
 
 
@@ -175,11 +334,12 @@ def _fact_rows(name: str, value: np.ndarray, path: Path) -> np.ndarray:
     return rows
 
 
-def read_generated_motion(path: str | Path) -> GeneratedMotion:
+def read_generated_motion(path: str | Path, max_frames: int | None = None) -> GeneratedMotion:
     """Read one file and recognise its layout (module docstring); InputError for anything
-    else, naming the file and what was found."""
+    else, naming the file and what was found. ``max_frames`` (see
+    :func:`generated_frame_limit`) refuses a file declaring more frames, before loading it."""
     path = Path(path)
-    data = _read_arrays(path)
+    data = read_generated_arrays(path, max_frames)
     positions = None
     for key in _POSITION_KEYS:
         if key in data:

@@ -18,7 +18,8 @@ Frames: with a frame column, rows are placed at their frame number minus ``frame
 gaps become missing frames, NaN, ``present`` False, exactly like OpenPose file numbering); without
 one, row r is frame r. Empty cells and ``nan`` are NaN. Units are whatever the lifter wrote
 (usually metres, sometimes millimetres or normalised); they are not guessed.
-Delimiter: ``,``, ``;`` or tab, detected from the first line unless given.
+Delimiter: ``,``, ``;`` or tab, detected from the first line unless given. At most
+:data:`MAX_JOINTS` joints; frame numbers within :mod:`dancedata.io.frame_limits`.
 """
 
 from __future__ import annotations
@@ -34,11 +35,13 @@ from typing import Literal
 import numpy as np
 
 from dancedata.errors import InputError
+from dancedata.io.frame_limits import check_frame_span
 
 FRAME_NAMES = ("frame", "frame_index", "frame_idx", "frame_id", "index", "idx")
 TIME_NAMES = ("time", "time_s", "timestamp", "t")
 _COORD_RE = re.compile(r"^(?P<joint>.+)[_.](?P<axis>[xyzXYZ])$")
 _AXES = "xyz"
+MAX_JOINTS = 1000  # SMPL-X has 127 joints, BODY_135 135; a header with more is not a skeleton
 
 
 @dataclass(frozen=True)
@@ -111,6 +114,7 @@ def _header_columns(
     header: list[str], path: Path, ignore: tuple[str, ...]
 ) -> tuple[list[str], dict[tuple[str, str], int], int | None, int | None]:
     joints: list[str] = []
+    seen: set[str] = set()  # a set beside the ordered list: the check stays linear
     coord: dict[tuple[str, str], int] = {}
     frame_col = time_col = None
     for c, raw in enumerate(header):
@@ -134,7 +138,10 @@ def _header_columns(
         joint, axis = match.group("joint"), match.group("axis").lower()
         if (joint, axis) in coord:
             raise InputError(f"column {name!r} appears twice", path)
-        if joint not in joints:
+        if joint not in seen:
+            if len(joints) >= MAX_JOINTS:
+                raise InputError(f"more than {MAX_JOINTS} joints in the header", path)
+            seen.add(joint)
             joints.append(joint)
         coord[(joint, axis)] = c
     if not joints:
@@ -260,6 +267,7 @@ def read_joints_csv(
     if np.unique(index).size != index.size:
         dup = int(np.flatnonzero(np.bincount(index) > 1)[0]) + frame_base
         raise InputError(f"frame {dup} appears more than once", path)
+    check_frame_span(int(index.max()), len(index), path, "rows")
     n_frames = int(index.max()) + 1
     positions = np.full((n_frames, len(names), 3), np.nan)
     positions[index] = data

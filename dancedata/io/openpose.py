@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from dancedata.errors import InputError
+from dancedata.io.frame_limits import check_frame_span
 
 _FILE_RE = re.compile(r"^(?P<prefix>.*?)_?(?P<index>\d+)_keypoints\.json$")
 
@@ -197,7 +198,10 @@ def list_keypoint_files(folder: str | Path, prefix: str | None = None) -> dict[i
             raise InputError("no frame number before '_keypoints.json' in the file name", path)
         if prefix is not None and match.group("prefix") != prefix:
             continue
-        index = int(match.group("index"))
+        digits = match.group("index")
+        if len(digits) > 15:  # OpenPose writes 12 digits; int() of thousands of digits is slow
+            raise InputError(f"frame number of {len(digits)} digits in the file name", path)
+        index = int(digits)
         if index in found:
             raise InputError(
                 f"frame {index} also comes from {found[index].name}: the folder mixes the output "
@@ -208,6 +212,8 @@ def list_keypoint_files(folder: str | Path, prefix: str | None = None) -> dict[i
     if not found:
         what = f"with prefix {prefix!r} " if prefix is not None else ""
         raise InputError(f"no *_keypoints.json files {what}in the folder", root)
+    largest = max(found)
+    check_frame_span(largest, len(found), found[largest], "files")
     return dict(sorted(found.items()))
 
 
@@ -232,19 +238,44 @@ def _pose_values(person: dict, path: Path, k: int) -> list:
     return values
 
 
+MAX_JSON_BYTES = 16 << 20  # one frame: 25 body + 70 face + 42 hand points for ~100 people is 1 MB
+MAX_INT_DIGITS = 20  # an integer in a keypoints file is a person id or a 0/1 coordinate
+
+
+def _bounded_int(text: str) -> int:
+    """JSON integers of at most :data:`MAX_INT_DIGITS` digits (a 5,000-digit number would
+    otherwise cost seconds or raise deep inside ``json``)."""
+    if len(text) > MAX_INT_DIGITS:
+        raise ValueError(f"an integer of {len(text)} digits")
+    return int(text)
+
+
+def _bounded_float(text: str) -> float:
+    """JSON numbers with a fraction or exponent, at most 40 characters long."""
+    if len(text) > 40:
+        raise ValueError(f"a number of {len(text)} characters")
+    return float(text)
+
+
 def parse_keypoints_json(data: bytes, path: Path) -> tuple[str | None, list[int], list[list]]:
     """Parse one file's bytes → (version, person ids, flat keypoint lists); errors name ``path``."""
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise InputError(f"not UTF-8 text (byte {exc.start})", path) from None
+    if len(data) > MAX_JSON_BYTES:
+        raise InputError(f"{len(data)} bytes: more than {MAX_JSON_BYTES} for one frame", path)
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, parse_int=_bounded_int, parse_float=_bounded_float)
     except json.JSONDecodeError as exc:
         hint = " (file truncated?)" if exc.pos >= len(text.rstrip()) - 1 else ""
         raise InputError(
             f"not valid JSON{hint}: {exc.msg} at line {exc.lineno} column {exc.colno}", path
         ) from None
+    except RecursionError:
+        raise InputError("JSON nested too deeply (not an OpenPose keypoints file)", path) from None
+    except ValueError as exc:  # _bounded_int
+        raise InputError(f"not an OpenPose keypoints file: {exc}", path) from None
     if not isinstance(doc, dict):
         raise InputError("top level is not a JSON object", path)
     if "people" not in doc:

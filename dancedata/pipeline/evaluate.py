@@ -50,6 +50,7 @@ from dancedata.experiments.results_schema import results_table
 from dancedata.io.generated_motion import (
     GENERATED_SUFFIXES,
     find_generated_file,
+    generated_frame_limit,
     read_generated_motion,
 )
 from dancedata.loader import DanceStore, open_store
@@ -199,8 +200,8 @@ def _gen_from_store(gen: DanceStore, seq_id: str, model: Any) -> dict[str, Any]:
     }
 
 
-def _gen_from_file(path: Path) -> dict[str, Any]:
-    motion = read_generated_motion(path)
+def _gen_from_file(path: Path, max_frames: int | None = None) -> dict[str, Any]:
+    motion = read_generated_motion(path, max_frames)
     aa = trans = None
     if motion.fact_rows is not None:
         aa, trans = fact_rows_to_smpl(motion.fact_rows)
@@ -478,7 +479,10 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
                         f"no generated file {seq_id}{{{','.join(GENERATED_SUFFIXES)}}}", generated
                     )
                 inputs.append(sha256_file(file))
-                gen = _gen_from_file(file)
+                limit = generated_frame_limit(
+                    int(row["n_frames"]), options.generated_fps, params.fps
+                )
+                gen = _gen_from_file(file, limit)
             gen = _adapt(gen, options, params.fps)
             gt, gt_missing = _gt_side(store, seq_id, model, euler_order)
             beats, beats_missing = _beats(store, seq_id)

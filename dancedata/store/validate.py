@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from dancedata.errors import StoreError
+from dancedata.seq_ids import seq_id_problem
 from dancedata.store.contract import store_schema
 from dancedata.store.integrity import verify_store
 from dancedata.store.layout import MANIFEST_FILE, ZARR_DIR, StoreLayout
@@ -275,6 +276,10 @@ def _check_ranges(reader: VersionReader, tables: dict[str, list[dict[str, Any]]]
     problems: list[str] = []
     sequences = tables.get("sequences", [])
     by_id = {s["seq_id"]: s for s in sequences}
+    bad_ids = [p for p in (seq_id_problem(s.get("seq_id")) for s in sequences) if p]
+    problems += [f"sequences: {p}" for p in bad_ids[:5]]
+    if len(bad_ids) > 5:
+        problems.append(f"sequences: {len(bad_ids) - 5} more seq_id(s) that are not plain names")
     for seq in sequences:
         if seq["frame_stop"] - seq["frame_start"] != seq["n_frames"]:
             problems.append(f"sequences: {seq['seq_id']} frame range != n_frames")

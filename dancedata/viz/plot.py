@@ -197,8 +197,35 @@ def figure_from_data(
     stop: int | None = None,
 ) -> Figure:
     """Draw gathered :class:`SequencePlotData` (see the module docstring for what is where);
-    ``start``/``stop`` (motion frames) zoom the shared x axis to [start, stop)."""
+    ``start``/``stop`` (motion frames) zoom the shared x axis to [start, stop). Every string
+    is drawn literally (:func:`literal_text`): names from a store are data, never mathtext."""
     require("matplotlib", "plotting")
+    with literal_text():
+        fig = _draw(d, width, dpi, start, stop)
+    make_literal(fig)
+    return fig
+
+
+def literal_text() -> Any:
+    """A context in which matplotlib creates text with mathtext parsing off
+    (``text.parse_math``), so ``$\\foo$`` in a genre, joint or sequence name is drawn as
+    written instead of raising a parse error. Tick labels are made when the figure is drawn,
+    so saving runs in it too."""
+    import matplotlib
+
+    return matplotlib.rc_context({"text.parse_math": False})
+
+
+def make_literal(fig: Any) -> None:
+    """Turn mathtext parsing off on every text artist already in ``fig``."""
+    from matplotlib.text import Text
+
+    for text in fig.findobj(Text):
+        text.set_parse_math(False)
+
+
+def _draw(d: SequencePlotData, width: float, dpi: float, start: int | None,
+          stop: int | None) -> Figure:  # fmt: skip
     from matplotlib.figure import Figure
 
     panels: list[tuple[Any, float]] = [(_panel_waveform, 1.0), (_panel_onset, 1.2)]
@@ -295,7 +322,9 @@ def save_figure(fig: Figure, out: str | Path) -> Path:
     suffix = out.suffix.lower()
     tmp = out.with_name(f".{out.name}.tmp{os.getpid()}{suffix}")
     try:
-        fig.savefig(tmp, format=suffix[1:])
+        make_literal(fig)
+        with literal_text():
+            fig.savefig(tmp, format=suffix[1:])
         os.replace(tmp, out)
     finally:
         tmp.unlink(missing_ok=True)

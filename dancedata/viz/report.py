@@ -353,8 +353,12 @@ def gallery_sequences(sequences: list[dict[str, Any]], n: int) -> list[str]:
 
 def figure_png_base64(fig: Any, dpi: float) -> str:
     """A matplotlib figure as base64 PNG text."""
+    from dancedata.viz.plot import literal_text, make_literal
+
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi)
+    make_literal(fig)
+    with literal_text():  # names from the store are drawn as written, never as mathtext
+        fig.savefig(buffer, format="png", dpi=dpi)
     return base64.b64encode(buffer.getvalue()).decode("ascii")
 
 

@@ -203,39 +203,22 @@ def load_skeleton(
 
 
 def _generated_file(path: Path, seq_id: str) -> Path:
+    """``path`` itself, or its file for ``seq_id`` matched by exact name
+    (:func:`dancedata.io.generated_motion.find_generated_file`: never a glob or a path)."""
+    from dancedata.io.generated_motion import find_generated_file
+
     if path.is_file():
         return path
     if path.is_dir():
-        for suffix in GENERATED_SUFFIXES:
-            candidate = path / f"{seq_id}{suffix}"
-            if candidate.is_file():
-                return candidate
+        found = find_generated_file(path, seq_id)
+        if found is not None:
+            return found
         raise InputError(
             f"no generated motion for {seq_id} (looked for {seq_id}"
             f"{{{','.join(GENERATED_SUFFIXES)}}})",
             path,
         )
     raise InputError("generated motion file or folder not found", path)
-
-
-def _read_generated(path: Path) -> dict[str, np.ndarray]:
-    suffix = path.suffix.lower()
-    try:
-        if suffix == ".npy":
-            return {"array": np.load(path, allow_pickle=False)}
-        if suffix == ".npz":
-            with np.load(path, allow_pickle=False) as npz:
-                return {k: np.asarray(npz[k]) for k in npz.files}
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read as a numpy file ({exc})", path) from None
-    if suffix == ".pkl":
-        from dancedata.safe_pickle import load_restricted
-
-        data = load_restricted(path)
-        if not isinstance(data, dict):
-            raise InputError("a generated-motion pickle must hold a dict of arrays", path)
-        return {str(k): np.asarray(v) for k, v in data.items() if isinstance(v, np.ndarray)}
-    raise InputError(f"generated motion must be {', '.join(GENERATED_SUFFIXES)}", path)
 
 
 def _smpl_generated(
@@ -278,8 +261,11 @@ def load_generated(
     for 24 joints, else ``like``'s skeleton when the joint counts match. ``fps``: default
     ``like.fps``.
     """
+    from dancedata.io.generated_motion import generated_frame_limit, read_generated_arrays
+
     file = _generated_file(Path(path), seq_id)
-    data = _read_generated(file)
+    limit = generated_frame_limit(len(like.positions), fps or like.fps, like.fps)
+    data = read_generated_arrays(file, limit)  # shapes checked before anything is loaded
     array = data.get("array")
     for key in ("positions", "full_pose"):
         if array is None and key in data:
