@@ -77,23 +77,27 @@ def validate(
 ) -> None:
     """Check the store against schemas/store.schema.json; exit 1 on any contract violation.
     With --deep, name every corrupted chunk, array and table."""
-    from dancedata.store.validate import store_notes, validate_store
+    from dancedata.store.validate import MAX_SHOWN, shown_problems, store_notes, validate_store
 
     problems = validate_store(store, version, deep=deep)
     notes = store_notes(store)
+    shown, hidden = shown_problems(problems)
     if as_json:
-        typer.echo(
-            json.dumps(
-                {"valid": not problems, "deep": deep, "problems": problems, "notes": notes},
-                indent=2,
-            )
-        )
+        record = {"valid": not problems, "deep": deep, "problems": shown,
+                  "problem_count": len(problems), "notes": notes[:MAX_SHOWN]}
+        typer.echo(json.dumps(record, indent=2))
     else:
-        for note in notes:
+        for note in notes[:MAX_SHOWN]:
             typer.echo(f"note: {note}", err=True)
         if problems:
-            for problem in problems:
+            for problem in shown:
                 typer.echo(f"invalid: {problem}", err=True)
+            if hidden:
+                typer.echo(
+                    f"invalid: ... and {hidden:,} more problems ({len(problems):,} in all; the "
+                    f"first {len(shown)} are shown)",
+                    err=True,
+                )
             unverified = [p for p in problems if "checksums.json: missing" in p]
             if deep and unverified:
                 typer.echo(

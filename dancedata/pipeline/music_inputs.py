@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,6 +44,7 @@ from dancedata.errors import InputError
 from dancedata.io.audio import audio_info
 from dancedata.io.audio_decode import DEFAULT_MAX_AUDIO_SECONDS, DecodedAudio
 from dancedata.io.music_file import FileStamp, sha256_of_path
+from dancedata.store.untrusted import kind_of
 
 ACCEPT_OPTION = "--accept-changed-music"
 LIMIT_OPTION = "--max-audio-seconds"
@@ -150,13 +152,21 @@ def _verify(row: dict[str, Any], accept_changed: bool) -> CheckedTrack:
     ``row`` with the file's header as it is now."""
     path, music_id = str(row["path"]), str(row["music_id"])
     try:
-        stamp = FileStamp.of(os.stat(path))
+        info = os.stat(path)
     except OSError:
         raise InputError(
             f"music file not found (recorded for music {music_id} at ingest); restore it, or run "
             "ingest again",
             path,
         ) from None
+    if not stat.S_ISREG(info.st_mode):
+        # a path from the store's music table: a FIFO would hang the hash, /dev/zero never end
+        raise InputError(
+            f"music path is {kind_of(info.st_mode)}, not a regular file (recorded for music "
+            f"{music_id}); nothing was read from it",
+            path,
+        )
+    stamp = FileStamp.of(info)
     recorded_sha = row.get("sha256")
     recorded_stamp = FileStamp.recorded(row.get("size_bytes"), row.get("mtime_ns"))
     if recorded_sha and stamp == recorded_stamp:
@@ -201,9 +211,18 @@ def decode_checked(
     from dancedata.io.music_file import sha256_of_handle
 
     try:
-        handle = open(path, "rb")  # noqa: SIM115 - closed below, after the decode
+        # O_NONBLOCK: a path swapped for a FIFO since it was verified must not block the open
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except OSError as exc:
         raise InputError(f"cannot open music file: {exc.strerror or exc}", path) from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise InputError(
+            f"music path is {kind_of(mode)}, not a regular file; nothing was read from it", path
+        )
+    os.set_blocking(fd, True)
+    handle = os.fdopen(fd, "rb")
     with handle:
         before = _identity(os.fstat(handle.fileno()))
         actual = sha256_of_handle(handle)

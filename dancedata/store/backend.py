@@ -154,6 +154,30 @@ class StoreBackend(ABC):
         """Keys (relative to ``key``) of symbolic links below it; object stores have none."""
         return []
 
+    def read_small(self, key: str, limit: int) -> bytes:
+        """The bytes at ``key``, refused (OSError) without reading them when the object is over
+        ``limit`` bytes (see :mod:`dancedata.store.untrusted`)."""
+        from dancedata.store.untrusted import too_large
+
+        size = self.size(key)
+        if size > limit:
+            raise too_large(self.where(key), size, limit)
+        data = self.read_bytes(key)
+        if len(data) > limit:
+            raise too_large(self.where(key), len(data), limit)
+        return data
+
+    def special(self, key: str) -> str | None:
+        """What the entry ``key`` is when it is neither a regular file nor a real folder ("a
+        symbolic link", "a FIFO (named pipe)", "a device", ...); None otherwise or when absent.
+        Object stores hold plain objects only."""
+        return None
+
+    def special_below(self, key: str, *, skip_top: Iterable[str] = ()) -> list[tuple[str, str]]:
+        """(key relative to ``key``, what it is) of every entry below ``key`` that is neither a
+        regular file nor a real folder (see :meth:`special`); object stores have none."""
+        return []
+
     def is_regular(self, key: str) -> bool:
         """A plain file (not a symbolic link, not a folder)."""
         return self.is_file(key)

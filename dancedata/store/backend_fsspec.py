@@ -43,6 +43,7 @@ from dancedata.store.references import (
     parse_references,
     references_body,
 )
+from dancedata.store.untrusted import LOCK_LIMIT, RECORD_LIMIT
 
 
 class FsspecBackend(StoreBackend):
@@ -197,9 +198,13 @@ class FsspecBackend(StoreBackend):
     def _references(self, version: str) -> dict[str, str]:
         """The references.json of a committed version folder ({} when it has none)."""
         try:
-            data = self.read_bytes(join(version, REFERENCES_FILE))
+            data = self.read_small(join(version, REFERENCES_FILE), RECORD_LIMIT)
         except FileNotFoundError:
             return {}
+        except OSError as exc:
+            where = self.where(join(version, REFERENCES_FILE))
+            problem = f"unreadable {REFERENCES_FILE}: {exc.strerror or exc}"
+            raise StoreError(problem, where) from None
         return parse_references(data, self.where(join(version, REFERENCES_FILE)))
 
     def _stored(self, version: str, *, skip_top: Iterable[str] = ()) -> dict[str, Any]:
@@ -318,10 +323,10 @@ class ObjectStoreLock:
 
     def _holder(self) -> dict[str, Any] | None:
         try:
-            return json.loads(self.backend.read_bytes(LOCK_FILE))
+            return json.loads(self.backend.read_small(LOCK_FILE, LOCK_LIMIT))
         except FileNotFoundError:
             return None
-        except ValueError:
+        except (ValueError, RecursionError, OSError):
             return {}
 
     def acquire(self) -> None:

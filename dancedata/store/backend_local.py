@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from dancedata.store.backend import TEMP_PREFIX, Bytes, StoreBackend, join
+from dancedata.store.untrusted import kind_of, open_regular, read_regular, special_entries
 
 # Files that are rewritten when a version changes (zarr metadata): copied into a child, never
 # hard-linked, so that updating them never touches the parent.
@@ -93,17 +94,37 @@ class LocalBackend(StoreBackend):
 
     # -- reading -------------------------------------------------------------------------------
     def read_bytes(self, key: str) -> bytes:
-        return self.path(key).read_bytes()
+        # regular files only: never through a symbolic link, never from a FIFO or a device
+        return read_regular(self.path(key))
+
+    def read_small(self, key: str, limit: int) -> bytes:
+        return read_regular(self.path(key), limit)
 
     def sha256(self, key: str) -> str:
-        from dancedata.store.checksums import sha256_file  # read in blocks, never whole
+        from dancedata.store.checksums import sha256_handle  # read in blocks, never whole
 
-        return sha256_file(self.path(key))
+        with os.fdopen(open_regular(self.path(key)), "rb") as handle:
+            return sha256_handle(handle)
 
     def read_buffer(self, key: str) -> Any:
         import numpy as np
 
-        return np.memmap(self.path(key), dtype=np.uint8, mode="r")
+        with os.fdopen(open_regular(self.path(key)), "rb") as handle:
+            if os.fstat(handle.fileno()).st_size == 0:
+                return np.zeros(0, dtype=np.uint8)
+            return np.memmap(handle, dtype=np.uint8, mode="r")
+
+    def special(self, key: str) -> str | None:
+        try:
+            mode = os.lstat(self.path(key)).st_mode
+        except OSError:
+            return None
+        if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+            return None
+        return kind_of(mode)
+
+    def special_below(self, key: str, *, skip_top: Iterable[str] = ()) -> list[tuple[str, str]]:
+        return special_entries(self.path(key), skip_top=frozenset(skip_top))
 
     def is_file(self, key: str) -> bool:
         return self.path(key).is_file()

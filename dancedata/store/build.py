@@ -15,13 +15,13 @@ a single PUT on object stores (both atomic), so a marker never names a partial o
 from __future__ import annotations
 
 import io
-import json
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
+from dancedata.errors import StoreError
 from dancedata.store.backend import StoreBackend, json_bytes
 from dancedata.store.backend_open import make_backend
 from dancedata.store.layout import ZARR_DIR
@@ -64,9 +64,12 @@ class BuildArea:
 
     def read_json(self, rel: str) -> Any | None:
         """``.build/<rel>`` parsed, or None when absent or unreadable (a torn write)."""
+        from dancedata.store.untrusted import BUILD_JSON_LIMIT, parse_json
+
         try:
-            return json.loads(self.backend.read_bytes(self._key(rel)))
-        except (OSError, ValueError):
+            data = self.backend.read_small(self._key(rel), BUILD_JSON_LIMIT)
+            return parse_json(data, self._key(rel), rel)
+        except (OSError, StoreError):
             return None
 
     def read_all_json(self, rel_dir: str) -> dict[str, Any]:

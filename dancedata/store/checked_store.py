@@ -10,16 +10,25 @@ chunk key. Defined at module level so that a store (and an array opened on it) c
 from __future__ import annotations
 
 import hashlib
-import json
+import os
+import stat
 from collections.abc import Callable
 from typing import Any
 
 from zarr.abc.store import ByteRequest, Store
 from zarr.core.buffer import Buffer, BufferPrototype
-from zarr.storage import WrapperStore
+from zarr.storage import LocalStore, WrapperStore
 
 from dancedata.errors import StoreError
-from dancedata.store.chunks import ChunkGrid, crc32c_matches, describe_chunk, split_chunk_key
+from dancedata.store.chunks import (
+    ChunkGrid,
+    crc32c_matches,
+    decoded_size_problem,
+    describe_chunk,
+    split_chunk_key,
+)
+from dancedata.store.metadata_checks import array_meta_problem
+from dancedata.store.untrusted import ZARR_JSON_LIMIT, not_regular, parse_json, too_large
 
 
 class CheckedStore(WrapperStore):  # type: ignore[type-arg]
@@ -54,13 +63,18 @@ class CheckedStore(WrapperStore):  # type: ignore[type-arg]
     async def _grid(self, array: str, prototype: BufferPrototype) -> ChunkGrid | None:
         if array not in self._grids:
             meta_key = f"{array}/zarr.json" if array else "zarr.json"
+            self._check_regular(meta_key)
             raw = await self._store.get(meta_key, prototype)
             meta = None
             if raw is not None:
-                try:
-                    meta = json.loads(raw.to_bytes())
-                except ValueError:
-                    meta = None
+                data = raw.to_bytes()
+                where = f"{self.where}/{meta_key}" if self.where else meta_key
+                if len(data) > ZARR_JSON_LIMIT:
+                    raise StoreError(str(too_large(where, len(data), ZARR_JSON_LIMIT)))
+                meta = parse_json(data, where, "zarr.json")
+                problem = array_meta_problem(meta)
+                if problem is not None:
+                    raise StoreError(problem, where)
             self._grids[array] = ChunkGrid.from_metadata(meta)
         return self._grids[array]
 
@@ -78,6 +92,7 @@ class CheckedStore(WrapperStore):  # type: ignore[type-arg]
         prototype: BufferPrototype,
         byte_range: ByteRequest | None = None,
     ) -> Buffer | None:
+        self._check_regular(key)
         value = await self._store.get(key, prototype, byte_range)
         split = split_chunk_key(key)
         if split is None or byte_range is not None:
@@ -99,6 +114,7 @@ class CheckedStore(WrapperStore):  # type: ignore[type-arg]
                 )
             if not crc32c_matches(value.as_numpy_array()):
                 raise self._fail(array, chunk, "crc32c checksum mismatch (the chunk is corrupted)")
+            self._check_size(grid, array, chunk, value)
             return value
         entry = self._recorded().get(key)
         if entry is None:
@@ -114,4 +130,24 @@ class CheckedStore(WrapperStore):  # type: ignore[type-arg]
             raise self._fail(
                 array, chunk, "sha256 differs from checksums.json (the chunk is corrupted)"
             )
+        self._check_size(grid, array, chunk, value)
         return value
+
+    def _check_size(self, grid: ChunkGrid, array: str, chunk: str, value: Buffer) -> None:
+        problem = decoded_size_problem(grid, value.as_numpy_array())
+        if problem is not None:
+            raise self._fail(array, chunk, problem)
+
+    def _check_regular(self, key: str) -> None:
+        """Refuse a file that is a symbolic link, a FIFO or a device before zarr opens it (a
+        local store: zarr opens files by path, and a FIFO would block forever)."""
+        root = getattr(self._store, "root", None)
+        if root is None or not isinstance(self._store, LocalStore):
+            return
+        path = os.path.join(str(root), key)
+        try:
+            mode = os.lstat(path).st_mode
+        except OSError:
+            return
+        if not stat.S_ISREG(mode):
+            raise StoreError(str(not_regular(path, mode)))

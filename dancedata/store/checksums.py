@@ -13,10 +13,15 @@ _BLOCK = 1 << 20
 
 def sha256_file(path: str | Path) -> str:
     """Hex sha256 of a file's bytes, read in 1 MiB blocks."""
-    digest = hashlib.sha256()
     with open(path, "rb") as handle:
-        while block := handle.read(_BLOCK):
-            digest.update(block)
+        return sha256_handle(handle)
+
+
+def sha256_handle(handle: Any) -> str:
+    """Hex sha256 of the bytes left in an open binary file, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    while block := handle.read(_BLOCK):
+        digest.update(block)
     return digest.hexdigest()
 
 

@@ -34,6 +34,8 @@ class ChunkGrid:
     separator: str  # chunk key separator: "/" (c/0/0) or "." (c.0.0)
     default_encoding: bool  # "default" (c/ prefix) or "v2" (bare 0.0) encoding
     crc32c: bool  # the codec chain ends with crc32c: every chunk was written and is checked
+    chunk_bytes: int = 0  # bytes of one decoded chunk (0: unknown)
+    codecs: tuple[str, ...] = ()  # codec names, in order
 
     @classmethod
     def from_metadata(cls, meta: Any) -> ChunkGrid | None:
@@ -41,6 +43,10 @@ class ChunkGrid:
         a regular-grid zarr v3 array (those are not checked here)."""
         if not isinstance(meta, dict) or meta.get("node_type") != "array":
             return None
+        from dancedata.store.metadata_checks import array_meta_problem
+
+        if array_meta_problem(meta) is not None:
+            return None  # refused by the reader and reported by validate, never enumerated
         try:
             shape = tuple(int(n) for n in meta["shape"])
             grid = meta["chunk_grid"]
@@ -61,7 +67,16 @@ class ChunkGrid:
             return None
         if len(shape) != len(chunk_shape) or any(c <= 0 for c in chunk_shape):
             return None
-        return cls(shape, chunk_shape, separator, name == "default", crc)
+        from dancedata.store.metadata_checks import decoded_chunk_bytes
+
+        names = tuple(c.get("name") if isinstance(c, dict) else str(c) for c in codecs)
+        return cls(shape, chunk_shape, separator, name == "default", crc,
+                   decoded_chunk_bytes(meta), names)
+
+    @property
+    def n_chunks(self) -> int:
+        """Chunks the shape and chunk grid call for (computed, never enumerated)."""
+        return math.prod(self.grid_shape)
 
     @property
     def grid_shape(self) -> tuple[int, ...]:
@@ -127,3 +142,52 @@ def crc32c_matches(data: Any) -> bool:
         return False
     computed = np.uint32(google_crc32c.value(np.ascontiguousarray(raw[:-4]))).tobytes()
     return computed == raw[-4:].tobytes()
+
+
+def zstd_content_size(frame: Any) -> int | None:
+    """The decoded size a zstd frame declares in its header (Frame_Content_Size), or None
+    when the bytes are not a zstd frame or the header leaves the size out (RFC 8878 §3.1.1)."""
+    import numpy as np
+
+    raw = np.frombuffer(frame, dtype=np.uint8)
+    if raw.shape[0] < 5 or raw[:4].tobytes() != b"\x28\xb5\x2f\xfd":
+        return None
+    descriptor = int(raw[4])
+    fcs_flag, single_segment, dict_flag = descriptor >> 6, (descriptor >> 5) & 1, descriptor & 3
+    offset = 5 + (0 if single_segment else 1) + (0, 1, 2, 4)[dict_flag]
+    width = (1 if single_segment else 0, 2, 4, 8)[fcs_flag]
+    if width == 0 or raw.shape[0] < offset + width:
+        return None
+    value = int.from_bytes(raw[offset : offset + width].tobytes(), "little")
+    return value + 256 if width == 2 else value
+
+
+def blosc_content_size(frame: Any) -> int | None:
+    """The decoded size a blosc frame declares (bytes 4-7 of its 16-byte header), or None."""
+    import numpy as np
+
+    raw = np.frombuffer(frame, dtype=np.uint8)
+    if raw.shape[0] < 16:
+        return None
+    return int.from_bytes(raw[4:8].tobytes(), "little")
+
+
+def decoded_size_problem(grid: ChunkGrid, data: Any) -> str | None:
+    """Why a stored chunk must not be decoded: its compressor's header declares more bytes than
+    one chunk of the array holds (a decompression bomb), or declares none. Checked before zarr
+    allocates the decoded buffer. ``data`` is the stored chunk (crc32c suffix included)."""
+    if not grid.chunk_bytes:
+        return None
+    body = data[:-4] if grid.crc32c else data
+    for name, size_of in (("zstd", zstd_content_size), ("blosc", blosc_content_size)):
+        if name in grid.codecs:
+            declared = size_of(body)
+            if declared is None:
+                return f"its {name} header declares no decoded size (refused: it could be any)"
+            if declared > grid.chunk_bytes:
+                return (
+                    f"its {name} header declares {declared:,} decoded bytes, but a chunk of this "
+                    f"array holds {grid.chunk_bytes:,} (refused before decoding)"
+                )
+            return None
+    return None

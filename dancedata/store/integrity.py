@@ -33,7 +33,6 @@ inode corrupts every version that links to it.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 from collections.abc import Callable, Hashable, Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -48,6 +47,7 @@ from dancedata.store.build import BUILD_DIR
 from dancedata.store.checksums import canonical_json
 from dancedata.store.chunks import ChunkGrid
 from dancedata.store.layout import MANIFEST_FILE, ZARR_DIR, StoreLayout
+from dancedata.store.untrusted import RECORD_LIMIT, ZARR_JSON_LIMIT, read_json
 
 CHECKSUMS_FILE = "checksums.json"
 ALGORITHM = "sha256"
@@ -109,8 +109,8 @@ def _hash_many(backend: StoreBackend, keys: list[str]) -> list[str]:
 
 def array_grids(version_dir: VersionLike) -> dict[str, ChunkGrid]:
     """Every regular-grid zarr v3 array of a version's data.zarr, by array path
-    (``motion/rotmat``); arrays whose metadata cannot be read are left out (validate reports
-    them when it opens them)."""
+    (``motion/rotmat``); arrays whose metadata cannot be read or is out of bounds are left out
+    (validate reports them from :func:`dancedata.store.reader.metadata_problems`)."""
     version = _version(version_dir)
     grids: dict[str, ChunkGrid] = {}
     if not version.is_dir(ZARR_DIR):
@@ -120,8 +120,8 @@ def array_grids(version_dir: VersionLike) -> dict[str, ChunkGrid]:
         if parts[-1] != "zarr.json" or "c" in parts[:-1]:
             continue  # chunk folders hold no metadata
         try:
-            meta = json.loads(version.read_bytes(f"{ZARR_DIR}/{rel}"))
-        except (OSError, ValueError):
+            meta = read_json(version, f"{ZARR_DIR}/{rel}", limit=ZARR_JSON_LIMIT)
+        except (OSError, StoreError):
             continue
         grid = ChunkGrid.from_metadata(meta)
         if grid is not None:
@@ -129,15 +129,70 @@ def array_grids(version_dir: VersionLike) -> dict[str, ChunkGrid]:
     return grids
 
 
-def required_chunk_files(version_dir: VersionLike) -> dict[str, tuple[str, ChunkGrid]]:
-    """Version-relative path of every chunk file the arrays' shapes and chunk grids call for,
-    mapped to (array path, grid)."""
+# An array's chunks are listed one by one only when there are at most this many, or no more
+# than the files its folder holds: a zarr.json declaring millions of chunks is one problem,
+# found by arithmetic, never millions of lines.
+MAX_LISTED_CHUNKS = 100_000
+
+
+def _chunk_files_per_array(version: StoreBackend) -> dict[str, int]:
+    """How many chunk files each array folder of data.zarr holds (by array path)."""
+    found: dict[str, int] = {}
+    prefix = f"{ZARR_DIR}/"
+    for rel in data_files(version):
+        if not rel.startswith(prefix):
+            continue
+        inner = rel[len(prefix):]
+        head, sep, _tail = inner.partition("/c/")
+        if not sep:
+            head = inner[:-2] if inner.endswith("/c") else None
+        if head is not None:
+            found[head] = found.get(head, 0) + 1
+    return found
+
+
+def chunk_requirements(
+    version_dir: VersionLike,
+) -> tuple[dict[str, tuple[str, ChunkGrid]], list[str]]:
+    """(every chunk file the arrays' shapes and chunk grids call for, by version-relative path,
+    mapped to (array path, grid); one problem per array that declares more chunks than its
+    folder holds and than can be listed, instead of its chunks)."""
+    version = _version(version_dir)
     required: dict[str, tuple[str, ChunkGrid]] = {}
-    for array, grid in array_grids(version_dir).items():
+    problems: list[str] = []
+    present: dict[str, int] | None = None
+    for array, grid in array_grids(version).items():
         base = f"{ZARR_DIR}/{array}/" if array != "." else f"{ZARR_DIR}/"
+        if grid.n_chunks > MAX_LISTED_CHUNKS:
+            if present is None:
+                present = _chunk_files_per_array(version)
+            held = present.get(array, 0)
+            if grid.n_chunks > held:
+                problems.append(
+                    f"zarr metadata of {array} ({base}zarr.json): its shape {list(grid.shape)} "
+                    f"and chunk shape {list(grid.chunk_shape)} call for {grid.n_chunks:,} "
+                    f"chunks, but its folder holds {held:,} (not listed one by one)"
+                )
+                continue
         for key in grid.chunk_keys():
             required[base + key] = (array, grid)
-    return required
+    return required, problems
+
+
+def required_chunk_files(version_dir: VersionLike) -> dict[str, tuple[str, ChunkGrid]]:
+    """Version-relative path of every chunk file the arrays' shapes and chunk grids call for,
+    mapped to (array path, grid) (arrays declaring more than can be listed are left out:
+    :func:`chunk_requirements` names them)."""
+    return chunk_requirements(version_dir)[0]
+
+
+def special_files(version: StoreBackend) -> list[str]:
+    """One problem per entry of a version that is a symbolic link, a FIFO, a device or a
+    socket: a store holds regular files only, and nothing is read through such an entry."""
+    return [
+        f"{describe_file(rel)} ({rel}): is {kind} (a store holds regular files only)"
+        for rel, kind in version.special_below("", skip_top=[BUILD_DIR])
+    ]
 
 
 def symlinks(version_dir: VersionLike) -> list[str]:
@@ -173,7 +228,9 @@ def commit_problems(version_dir: VersionLike, parent_dir: VersionLike | None) ->
         parent_files = (load_record(parent) or {}).get("files") or {}
     present = set(data_files(version))
     origin = f" (carried over from {parent.name})" if parent is not None else ""
-    for rel, (_array, grid) in sorted(required_chunk_files(version).items()):
+    required, too_many = chunk_requirements(version)
+    problems += too_many
+    for rel, (_array, grid) in sorted(required.items()):
         if rel in present:
             continue
         if grid.crc32c or rel in parent_files:
@@ -253,11 +310,21 @@ def record_checksums(
 def load_record(version_dir: VersionLike) -> dict[str, Any] | None:
     """The parsed ``checksums.json`` of a version, or None when it has none or it is unreadable
     (:func:`check_record` says which)."""
+    return _read_record(_version(version_dir))[0]
+
+
+def _read_record(version: StoreBackend) -> tuple[dict[str, Any] | None, str]:
+    """(the parsed checksums.json, "") or (None, why it cannot be used), read with a size and
+    a depth limit (:mod:`dancedata.store.untrusted`)."""
     try:
-        record = json.loads(_version(version_dir).read_bytes(CHECKSUMS_FILE))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return None
-    return record if isinstance(record, dict) else None
+        record = read_json(version, CHECKSUMS_FILE, limit=RECORD_LIMIT)
+    except FileNotFoundError:
+        return None, "missing"
+    except StoreError as exc:
+        return None, exc.problem
+    if not isinstance(record, dict):
+        return None, "unreadable (not a JSON object)"
+    return record, ""
 
 
 # -- naming what a file is ---------------------------------------------------------------------
@@ -347,8 +414,8 @@ def _parent_problems(version: StoreBackend, record: dict[str, Any]) -> list[str]
 def _unrecorded_chunks(version: StoreBackend, files: dict[str, Any]) -> list[str]:
     """Chunks of crc32c arrays (every chunk written) that the record does not list: a record
     built from the files present after a chunk went missing."""
-    problems = []
-    for rel, (_array, grid) in sorted(required_chunk_files(version).items()):
+    required, problems = chunk_requirements(version)
+    for rel, (_array, grid) in sorted(required.items()):
         if grid.crc32c and rel not in files:
             problems.append(
                 f"{describe_file(rel)} ({rel}): required by the array's shape and chunk grid "
@@ -372,16 +439,13 @@ def check_record(
     (there is nothing to verify against).
     """
     version = _version(version_dir)
-    links = [
-        f"{describe_file(rel)} ({rel}): is a symbolic link (a store holds regular files only)"
-        for rel in symlinks(version)
-    ]
+    links = special_files(version)
     if not version.exists(CHECKSUMS_FILE):
         missing = [f"{CHECKSUMS_FILE}: missing, so the data cannot be verified"] if deep else []
         return links + missing
-    record = load_record(version)
+    record, unreadable = _read_record(version)
     if record is None:
-        return [*links, f"{CHECKSUMS_FILE}: unreadable (not JSON)"]
+        return [*links, f"{CHECKSUMS_FILE}: {unreadable}"]
     files = record.get("files")
     if (
         record.get("algorithm") != ALGORITHM

@@ -15,7 +15,6 @@ versions are numbered past it so that nothing ever collides with it.
 from __future__ import annotations
 
 import copy
-import json
 import re
 import sys
 from pathlib import Path
@@ -25,6 +24,8 @@ from dancedata.errors import StoreError
 from dancedata.store.backend import TEMP_PREFIX, StoreBackend, json_bytes
 from dancedata.store.backend_local import write_file_atomic
 from dancedata.store.backend_open import make_backend
+from dancedata.store.metadata_checks import counts_problem
+from dancedata.store.untrusted import MANIFEST_LIMIT, POINTER_LIMIT, parse_json
 
 FORMAT_NAME = "dancedata-store"
 FORMAT_VERSION = 1
@@ -64,10 +65,7 @@ def write_json_atomic(path: Path, value: Any) -> None:
 def parse_pointer(text: str | bytes, where: str | Path) -> dict[str, Any]:
     """Parse and check the text of a store.json (local or remote); StoreError naming ``where``
     when it is not JSON, not ours, or of a format_version this dancedata does not read."""
-    try:
-        pointer = json.loads(text)
-    except ValueError as exc:
-        raise StoreError(f"unreadable store.json: {exc}", where) from None
+    pointer = parse_json(text, where, STORE_FILE)
     if not isinstance(pointer, dict) or pointer.get("format") != FORMAT_NAME:
         raise StoreError("store.json is not a dancedata store pointer", where)
     if pointer.get("format_version") != FORMAT_VERSION:
@@ -76,6 +74,13 @@ def parse_pointer(text: str | bytes, where: str | Path) -> dict[str, Any]:
             f"(this dancedata reads {FORMAT_VERSION})",
             where,
         )
+    latest = pointer.get("latest")
+    if latest is not None and not (isinstance(latest, str) and _VERSION_RE.match(latest)):
+        raise StoreError(
+            f"store.json: latest {latest!r:.60} is not a version name (v1, v2, ...) or null", where
+        )
+    if "checkouts" in pointer and not isinstance(pointer["checkouts"], list):
+        raise StoreError("store.json: 'checkouts' must be a list", where)
     return pointer
 
 
@@ -158,6 +163,9 @@ def manifest_problem(manifest: Any) -> str | None:
     stages = manifest.get("stages") or {}
     if not all(isinstance(k, str) and isinstance(v, str) for k, v in stages.items()):
         return "manifest.json: 'stages' must map stage names to fingerprint strings"
+    counts = counts_problem(manifest.get("counts"))
+    if counts is not None:
+        return f"manifest.json: {counts}"
     return None
 
 
@@ -178,10 +186,7 @@ def _empty_or_being_created(backend: StoreBackend) -> bool:
 def parse_manifest(text: str | bytes, where: str | Path) -> dict[str, Any]:
     """Parse and check the text of a manifest.json; StoreError naming ``where`` when it is not
     JSON or not a usable manifest (see :func:`manifest_problem`)."""
-    try:
-        manifest = json.loads(text)
-    except ValueError as exc:  # JSONDecodeError and UnicodeDecodeError
-        raise StoreError(f"unreadable manifest: {exc}", where) from None
+    manifest = parse_json(text, where, "manifest")
     problem = manifest_problem(manifest)
     if problem is not None:
         raise StoreError(problem, where)
@@ -243,11 +248,13 @@ class StoreLayout:
         if not self.exists():
             raise StoreError("not a dancedata store (no store.json)", self.root)
         try:
-            text = self.backend.read_bytes(STORE_FILE)
+            text = self.backend.read_small(STORE_FILE, POINTER_LIMIT)
         except FileNotFoundError:
             raise StoreError("not a dancedata store (no store.json)", self.root) from None
         except OSError as exc:
-            raise StoreError(f"unreadable store.json: {exc}", self.store_file) from None
+            raise StoreError(
+                f"unreadable store.json: {exc.strerror or exc}", self.store_file
+            ) from None
         return parse_pointer(text, self.store_file)
 
     def write_pointer(self, latest: str | None) -> None:
@@ -288,7 +295,22 @@ class StoreLayout:
         Where the pointer is the commit point (object stores), folders numbered past the
         newest version store.json names or has named (its checkout log) do not count: they are
         copies whose writer died before the commit, and the next writer replaces them."""
+        special = self.backend.special(VERSIONS_DIR)
+        if special is not None:
+            raise StoreError(
+                f"is {special}, not a folder (a store holds regular files and folders only; "
+                "nothing is read through it)",
+                self.versions_dir,
+            )
         names = [n for n in self.backend.list_dir(VERSIONS_DIR) if _VERSION_RE.match(n)]
+        for name in names:
+            special = self.backend.special(f"{VERSIONS_DIR}/{name}")
+            if special is not None:
+                raise StoreError(
+                    f"is {special}, not a version folder (a store holds regular files and "
+                    "folders only; nothing is read through it)",
+                    self.version_dir(name),
+                )
         if not self.backend.renames_atomically:
             limit = self._pointer_limit()
             names = [n for n in names if version_number(n) <= limit]
@@ -406,12 +428,14 @@ class StoreLayout:
         try:
             content = self.backend.content_key(key)
             if content is None:
-                return parse_manifest(self.backend.read_bytes(key), where)
+                return parse_manifest(self.backend.read_small(key, MANIFEST_LIMIT), where)
             cache_key = (str(where), content)
             if cache_key not in _MANIFEST_CACHE:
                 if len(_MANIFEST_CACHE) > 256:
                     _MANIFEST_CACHE.clear()
-                _MANIFEST_CACHE[cache_key] = parse_manifest(self.backend.read_bytes(key), where)
+                _MANIFEST_CACHE[cache_key] = parse_manifest(
+                    self.backend.read_small(key, MANIFEST_LIMIT), where
+                )
         except OSError as exc:
             raise StoreError(f"unreadable manifest: {exc.strerror or exc}", where) from None
         return copy.deepcopy(_MANIFEST_CACHE[cache_key])  # callers may change their copy

@@ -106,8 +106,12 @@ def this_holder(command: str | None = None) -> dict[str, Any]:
 def read_holder(path: Path) -> dict[str, Any] | None:
     """The lock record at ``path``; None when there is no lock file. Raises StoreError for a
     file that exists but is not a lock record (never written by dancedata: not auto-cleared)."""
+    from dancedata.store.untrusted import LOCK_LIMIT, read_regular
+
     try:
-        data = path.read_bytes()
+        # a regular file of a lock record's size only: never through a link, from a FIFO or
+        # from a device (a .lock linked to /dev/zero would be read forever)
+        data = read_regular(path, LOCK_LIMIT)
     except FileNotFoundError:
         return None
     except OSError as exc:
@@ -128,7 +132,7 @@ def parse_holder(data: bytes, where: str | Path) -> dict[str, Any]:
         ) from None
     try:
         holder = json.loads(text)
-    except json.JSONDecodeError:
+    except (json.JSONDecodeError, RecursionError):
         holder = None
     if not isinstance(holder, dict) or not isinstance(holder.get("pid"), int):
         raise StoreError(

@@ -17,6 +17,8 @@ from dancedata.errors import StoreError
 from dancedata.store.backend import StoreBackend
 from dancedata.store.backend_open import make_backend
 from dancedata.store.layout import TABLE_FILES, ZARR_DIR, StoreLayout
+from dancedata.store.metadata_checks import array_meta_problem, group_attrs_problem, table_problem
+from dancedata.store.untrusted import TABLE_LIMIT, ZARR_JSON_LIMIT, read_json
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -33,6 +35,7 @@ class VersionReader:
         self.path = self.layout.version_dir(self.version)  # a Path locally, else a URL
         self.files = self.layout.version_backend(self.version)
         self._tables: dict[str, pa.Table] = {}
+        check_regular_tree(self.files, self.path)
 
     @cached_property
     def manifest(self) -> dict[str, Any]:
@@ -48,6 +51,7 @@ class VersionReader:
 
         if not self.files.is_dir(ZARR_DIR):
             return None
+        check_zarr_metadata(self.files)
         recorded = functools.partial(recorded_chunks, self.files)  # picklable, read on demand
         store = CheckedStore(
             self.files.zarr_store(ZARR_DIR, read_only=True), str(self.files.where(ZARR_DIR)),
@@ -75,19 +79,23 @@ class VersionReader:
 
             where = self.files.where(TABLE_FILES[name])
             try:
-                data = self.files.read_bytes(TABLE_FILES[name])
+                data = self.files.read_small(TABLE_FILES[name], TABLE_LIMIT)
             except (FileNotFoundError, IsADirectoryError):
                 raise StoreError(f"version {self.version} has no {name} table", where) from None
             except OSError as exc:
-                raise StoreError(f"unreadable table: {exc}", where) from None
+                raise StoreError(f"unreadable table: {exc.strerror or exc}", where) from None
             try:
                 # An Arrow buffer read on this thread: with io.BytesIO (read from pyarrow's IO
                 # threads) a process exiting after the read aborted in about one run in three
                 # ("terminate called without an active exception", SIGABRT), and with pyarrow's
                 # decoding threads still in about 1 in 40. The tables are small.
-                self._tables[name] = pq.read_table(pa.BufferReader(data), use_threads=False)
+                table = pq.read_table(pa.BufferReader(data), use_threads=False)
             except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
-                raise StoreError(f"unreadable table: {exc}", where) from None
+                raise StoreError(f"unreadable table: {str(exc)[:300]}", where) from None
+            problem = table_problem(name, table)
+            if problem is not None:
+                raise StoreError(f"{name} table: {problem}", where)
+            self._tables[name] = table
         return self._tables[name]
 
     def has_array(self, name: str) -> bool:
@@ -155,3 +163,76 @@ def recorded_chunks(version_dir: str | Path | StoreBackend) -> dict[str, Any]:
         for rel, entry in files.items()
         if rel.startswith(prefix) and isinstance(entry, dict)
     }
+
+
+def check_regular_tree(files: StoreBackend, where: Any) -> None:
+    """StoreError naming the first entry of a version folder that is a symbolic link, a FIFO,
+    a device or a socket: a store holds regular files and folders only, and readers never read
+    through anything else (zarr opens chunk files by path)."""
+    found = files.special_below("")
+    if found:
+        rel, kind = found[0]
+        more = f" ({len(found) - 1} more such entries)" if len(found) > 1 else ""
+        raise StoreError(
+            f"{rel} is {kind}, not a regular file (a store holds regular files only; nothing is "
+            f"read through it){more}",
+            where,
+        )
+
+
+def _metadata_nodes(files: StoreBackend) -> list[str]:
+    """Paths inside data.zarr of every zarr.json that is node metadata (not inside a chunk
+    folder)."""
+    nodes = []
+    for rel in files.find(ZARR_DIR):
+        parts = rel.split("/")
+        if parts[-1] == "zarr.json" and "c" not in parts[:-1]:
+            nodes.append("/".join(parts[:-1]))
+    return sorted(nodes)
+
+
+def metadata_problems(files: StoreBackend, *, limit: int | None = None) -> list[str]:
+    """One line per zarr.json of a version's data.zarr (and per node of the consolidated
+    metadata of its root) that cannot be trusted: not JSON, too large or deep, or declaring an
+    array or attributes outside :mod:`dancedata.store.metadata_checks`' bounds. Stops after
+    ``limit`` problems."""
+    problems: list[str] = []
+
+    def check(node: str, meta: Any, where: Any) -> None:
+        problem = array_meta_problem(meta)
+        if problem is None and isinstance(meta, dict):
+            problem = group_attrs_problem(node, meta.get("attributes", {}))
+        if problem is not None:
+            problems.append(f"{where}: {problem}")
+
+    for node in _metadata_nodes(files):
+        if limit is not None and len(problems) >= limit:
+            break
+        key = f"{ZARR_DIR}/{node}/zarr.json" if node else f"{ZARR_DIR}/zarr.json"
+        try:
+            meta = read_json(files, key, limit=ZARR_JSON_LIMIT, what="zarr.json")
+        except FileNotFoundError:
+            continue
+        except StoreError as exc:
+            problems.append(str(exc))
+            continue
+        check(node, meta, files.where(key))
+        consolidated = meta.get("consolidated_metadata") if isinstance(meta, dict) else None
+        if not node and isinstance(consolidated, dict):
+            entries = consolidated.get("metadata")
+            if not isinstance(entries, dict):
+                problems.append(f"{files.where(key)}: consolidated metadata is not an object")
+                continue
+            for inner, inner_meta in sorted(entries.items()):
+                if limit is not None and len(problems) >= limit:
+                    break
+                check(inner, inner_meta, f"{files.where(key)} (consolidated entry {inner!r:.60})")
+    return problems
+
+
+def check_zarr_metadata(files: StoreBackend) -> None:
+    """StoreError naming the file of the first problem :func:`metadata_problems` finds (before
+    zarr parses any of it)."""
+    problems = metadata_problems(files, limit=1)
+    if problems:
+        raise StoreError(problems[0])

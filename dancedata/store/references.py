@@ -22,6 +22,7 @@ zarr.
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Hashable, Iterable
 from typing import Any
 
@@ -34,6 +35,7 @@ from dancedata.store.backend import Bytes, StoreBackend
 
 REFERENCES_FILE = "references.json"
 REFERENCES_FORMAT = "dancedata-references"
+_VERSION = re.compile(r"^v\d+$")
 
 
 def references_body(files: dict[str, str]) -> bytes:
@@ -45,10 +47,9 @@ def references_body(files: dict[str, str]) -> bytes:
 def parse_references(data: bytes, where: Any) -> dict[str, str]:
     """{version-relative path: holding version} of a references.json; StoreError naming it
     when it is not one."""
-    try:
-        record = json.loads(data)
-    except ValueError as exc:
-        raise StoreError(f"unreadable {REFERENCES_FILE}: {exc}", where) from None
+    from dancedata.store.untrusted import parse_json
+
+    record = parse_json(data, where, REFERENCES_FILE)
     files = record.get("files") if isinstance(record, dict) else None
     if (
         not isinstance(record, dict)
@@ -57,6 +58,17 @@ def parse_references(data: bytes, where: Any) -> dict[str, str]:
         or not all(isinstance(k, str) and isinstance(v, str) for k, v in files.items())
     ):
         raise StoreError(f"{REFERENCES_FILE} is not a dancedata references record", where)
+    for key, holder in files.items():
+        # a holder is a sibling version and a key a path inside it: never a way out
+        parts = key.split("/")
+        if not _VERSION.match(holder) or key.startswith("/") or any(
+            p in ("", ".", "..") for p in parts
+        ):
+            raise StoreError(
+                f"{REFERENCES_FILE} names {key!r:.80} held by {holder!r:.40}: a holder must be "
+                "a version name (v1, v2, ...) and a file a plain path inside it",
+                where,
+            )
     return files
 
 
@@ -110,6 +122,17 @@ class ReferencedVersion(StoreBackend):
     def read_bytes(self, key: str) -> bytes:
         holder, rel = self._holder(key)
         return holder.read_bytes(rel)
+
+    def read_small(self, key: str, limit: int) -> bytes:
+        holder, rel = self._holder(key)
+        return holder.read_small(rel, limit)
+
+    def special(self, key: str) -> str | None:
+        holder, rel = self._holder(key)
+        return holder.special(rel)
+
+    def special_below(self, key: str, *, skip_top: Iterable[str] = ()) -> list[tuple[str, str]]:
+        return self.base.special_below(key, skip_top=skip_top)
 
     def sha256(self, key: str) -> str:
         holder, rel = self._holder(key)

@@ -9,7 +9,6 @@ A damaged manifest (not an object, fields of the wrong type) is one problem, nev
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -22,7 +21,8 @@ from dancedata.seq_ids import seq_id_problem
 from dancedata.store.contract import store_schema
 from dancedata.store.integrity import verify_store
 from dancedata.store.layout import MANIFEST_FILE, ZARR_DIR, StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import VersionReader, metadata_problems
+from dancedata.store.untrusted import MANIFEST_LIMIT, read_json
 
 
 def validate_store(
@@ -65,13 +65,31 @@ def validate_store(
         except StoreError as exc:
             problems.append(f"{name}: {exc}")
             continue
+        metadata = metadata_problems(reader.files, limit=MAX_SHOWN)
+        problems += [f"{name}: {p}" for p in metadata]
         # an unreadable chunk is already named by the integrity check: say it once
-        found = validate_version(reader, report_unreadable=not integrity[name], scanned=scanned)
+        found = validate_version(
+            reader, report_unreadable=not integrity[name], scanned=scanned, arrays=not metadata
+        )
         problems += [f"{name}: {p}" for p in found]
     return problems
 
 
 _VERSION_NAME = re.compile(r"^v\d+$")
+
+# validate prints the first MAX_SHOWN problems (each cut to MAX_PROBLEM_CHARS) and a count of
+# the rest: a hostile store cannot make it print millions of lines.
+MAX_SHOWN = 50
+MAX_PROBLEM_CHARS = 500
+
+
+def shown_problems(problems: list[str]) -> tuple[list[str], int]:
+    """(the first MAX_SHOWN problems, each at most MAX_PROBLEM_CHARS long; how many more)."""
+    shown = [
+        p if len(p) <= MAX_PROBLEM_CHARS else p[: MAX_PROBLEM_CHARS - 1] + "…"
+        for p in problems[:MAX_SHOWN]
+    ]
+    return shown, max(0, len(problems) - MAX_SHOWN)
 
 
 def _damaged_version_dirs(layout: StoreLayout, committed: list[str]) -> list[str]:
@@ -93,9 +111,9 @@ def _damaged_version_dirs(layout: StoreLayout, committed: list[str]) -> list[str
             problems.append(f"{manifest}: missing (a damaged or half-restored version)")
         else:
             try:
-                value = json.loads(backend.read_bytes(f"{key}/{MANIFEST_FILE}").decode("utf-8"))
-            except (OSError, ValueError) as exc:
-                problems.append(f"{manifest}: unreadable ({exc})")
+                value = read_json(backend, f"{key}/{MANIFEST_FILE}", limit=MANIFEST_LIMIT)
+            except (OSError, StoreError) as exc:
+                problems.append(f"{manifest}: unreadable ({getattr(exc, 'problem', exc)})")
                 continue
             found = manifest_type_problems(value) or ["not a usable manifest"]
             problems += [f"{manifest}: {p}" for p in found]
@@ -107,10 +125,12 @@ def validate_version(
     *,
     report_unreadable: bool = True,
     scanned: dict[Any, tuple[int, int]] | None = None,
+    arrays: bool = True,
 ) -> list[str]:
     """Problems of one version against the contract; ``report_unreadable`` False leaves out
     arrays that cannot be read for the finiteness scan (already reported elsewhere);
-    ``scanned`` carries scan results between versions that share an array's files."""
+    ``scanned`` carries scan results between versions that share an array's files; ``arrays``
+    False leaves data.zarr out (its metadata is already reported as untrustworthy)."""
     schema = store_schema()
     problems = _check_manifest(reader, schema)
     tables: dict[str, list[dict[str, Any]]] = {}
@@ -127,6 +147,8 @@ def validate_version(
         problems += _check_columns(table, arrow, spec)
         tables[table] = arrow.to_pylist()
     problems += _guarded("tables", lambda: _check_ranges(reader, tables))
+    if not arrays:
+        return problems
     problems += _guarded("data.zarr", lambda: _check_arrays(reader, tables, schema))
     problems += _guarded(
         "data.zarr",

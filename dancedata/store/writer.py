@@ -210,6 +210,7 @@ class VersionWriter:
             self.tmp = self.backend.where(self.tmp_key)
             prepared = f"{self.tmp_key}/{BUILD_DIR}/{PREPARED_FILE}"
             if self.resumable and self.backend.is_file(prepared):
+                self._check_build_area()
                 self.resumed = True
                 return self
             self.backend.delete(self.tmp_key)
@@ -227,6 +228,24 @@ class VersionWriter:
                 raise error from None
             raise
         return self
+
+    def _check_build_area(self) -> None:
+        """Before resuming: the build area holds regular files and folders only. A symbolic
+        link planted in it (``data.zarr/audio`` pointing elsewhere) would have the resumed run
+        write outside the store; it is refused before anything is written, and the area is
+        removed like any refused build (a link is unlinked, never followed)."""
+        found = self.backend.special_below(self.tmp_key or "")
+        if self.tmp_key is not None and self.backend.special(self.tmp_key) is not None:
+            found = [("", self.backend.special(self.tmp_key) or "")]
+        if found:
+            rel, kind = found[0]
+            where = self.backend.where(f"{self.tmp_key}/{rel}" if rel else self.tmp_key or "")
+            raise StoreError(
+                f"the build area of an interrupted run holds {kind} here (a store holds "
+                "regular files only); refused before writing anything, and the build area "
+                "was removed: run again to start afresh",
+                where,
+            )
 
     def _check_based_on(self) -> None:
         if self.based_on is None or self.existing is not None:
