@@ -245,6 +245,13 @@ class StoreLayout:
     def read_pointer(self) -> dict[str, Any]:
         """Contents of store.json; a clear error when it is missing or not ours."""
         self.check_not_a_file()
+        special = self.backend.special(STORE_FILE)
+        if special is not None:
+            raise StoreError(
+                f"is {special}, not a regular file (a store holds regular files only; nothing "
+                "is read through it)",
+                self.store_file,
+            )
         if not self.exists():
             raise StoreError("not a dancedata store (no store.json)", self.root)
         try:

@@ -116,7 +116,7 @@ def read_holder(path: Path) -> dict[str, Any] | None:
         return None
     except OSError as exc:
         raise StoreError(
-            f"unreadable lock file ({exc}); remove it if no writer runs", path
+            f"unreadable lock file ({exc.strerror or exc}); remove it if no writer runs", path
         ) from None
     return parse_holder(data, path)
 

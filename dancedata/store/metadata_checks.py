@@ -249,7 +249,9 @@ def _column_problem(table: Any, column: str, kind: str) -> str | None:
     if not bad.any():
         return None
     index = int(np.flatnonzero(bad)[0])
-    return f"{column} {data[index]!r} ({int(bad.sum())} rows out of range): {rule}"
+    value = float(data[index])
+    shown = f"{int(value)}" if value.is_integer() and abs(value) < 1e18 else f"{value:g}"
+    return f"{column} {shown} ({int(bad.sum())} rows out of range): {rule}"
 
 
 def table_problem(name: str, table: Any) -> str | None:

@@ -174,8 +174,8 @@ def check_regular_tree(files: StoreBackend, where: Any) -> None:
         rel, kind = found[0]
         more = f" ({len(found) - 1} more such entries)" if len(found) > 1 else ""
         raise StoreError(
-            f"{rel} is {kind}, not a regular file (a store holds regular files only; nothing is "
-            f"read through it){more}",
+            f"{rel} is {kind} in {files.name}, not a regular file (a store holds regular files "
+            f"only; nothing is read through it){more}",
             where,
         )
 
