@@ -147,14 +147,16 @@ def read_store_holder(backend: Any) -> dict[str, Any] | None:
     """The lock record of the store at ``backend`` (a :class:`~dancedata.store.backend.
     StoreBackend`, any kind), None when unlocked; StoreError naming the lock file when it is
     not a lock record or cannot be read."""
+    from dancedata.store.untrusted import LOCK_LIMIT
+
     where = backend.where(LOCK_FILE)
     try:
-        data = backend.read_bytes(LOCK_FILE)
+        data = backend.read_small(LOCK_FILE, LOCK_LIMIT)
     except FileNotFoundError:
         return None
     except OSError as exc:
         raise StoreError(
-            f"unreadable lock file ({exc}); remove it if no writer runs", where
+            f"unreadable lock file ({exc.strerror or exc}); remove it if no writer runs", where
         ) from None
     return parse_holder(data, where)
 

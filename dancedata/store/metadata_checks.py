@@ -231,7 +231,9 @@ def _column_problem(table: Any, column: str, kind: str) -> str | None:
         return None
     if not (pa.types.is_integer(values.type) or pa.types.is_floating(values.type)):
         return None  # a column of another type: the column check of validate names it
-    data = np.asarray(values.drop_null().to_numpy(zero_copy_only=False), dtype=np.float64)
+    # plain Python values, no pyarrow compute kernel: those start Arrow's thread pool, and a
+    # process exiting right after (a refusal) then aborts now and then (SIGABRT)
+    data = np.array([v for v in values.to_pylist() if v is not None], dtype=np.float64)
     if kind == "bpm":
         data = data[~np.isnan(data)]
         bad = ~np.isfinite(data) | (data < 0) | (data > MAX_BPM)

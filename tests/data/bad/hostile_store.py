@@ -21,6 +21,9 @@ REPO = Path(__file__).resolve().parents[3]
 DEMO_CONFIG = REPO / "experiments" / "demo.toml"
 SEQ = "gBR_sBM_cAll_d01_mBR1_ch01"
 LATEST = "v3"
+# the small store's pose:test split holds one sequence (the demo config's crossmodal test + val
+# are empty there)
+EXPERIMENT_SPLIT = ["--set", "split.scheme=pose", "--set", 'split.eval=["test"]']
 ROTMAT = "data.zarr/motion/rotmat"
 
 
@@ -145,7 +148,17 @@ def readers(
             output=out,
         ),
         Command(
-            ["experiment", "run", str(DEMO_CONFIG), "--store", s, "-q", "-o", str(out / "ex")],
+            [
+                "experiment",
+                "run",
+                str(DEMO_CONFIG),
+                "--store",
+                s,
+                "-q",
+                "-o",
+                str(out / "ex"),
+                *EXPERIMENT_SPLIT,
+            ],
             expect=expect,
             json=True,
             output=out,
@@ -154,7 +167,7 @@ def readers(
     if write:
         commands += [
             Command(["checkout", s, "v2"], expect=expect, json=True),
-            Command(["segment", s, "-q"], expect=expect, json=True),
+            Command(["segment", s, "-q", "--beats-per-measure", "3"], expect=expect, json=True),
             Command(["featurize", s, "-q"], expect=expect, json=True),
         ]
     kept = []
@@ -614,7 +627,7 @@ def bpm_huge(work: Path, store: Path) -> list[Command]:
         reseal(version(store, name))
     s = str(store)
     return readers(work, store, "bpm", write=False) + [
-        Command(["segment", s, "-q"], expect="bpm", json=True)
+        Command(["segment", s, "-q", "--beats-per-measure", "3"], expect="bpm", json=True)
     ]
 
 
