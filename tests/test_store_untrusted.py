@@ -320,3 +320,13 @@ def test_hostile_store_case_is_refused(name, small_featurized_store, tmp_path):
             record = _json_object(proc.stdout)
             if command.expect_exit == 1 and command.argv[0] != "validate":
                 assert re.search(command.expect, record.get("error", "")), (where, record)
+
+
+def test_parquet_declaring_millions_of_rows_is_refused_from_its_footer(tmp_path):
+    from dancedata.store.reader import parquet_size_problem
+
+    path = tmp_path / "bomb.parquet"
+    hostile_store.rle_bomb_parquet(path, rows=60_000_000)
+    assert path.stat().st_size < 2_000_000
+    problem = parquet_size_problem(path.read_bytes())
+    assert problem is not None and "60,000,000 rows, over the limit" in problem

@@ -84,6 +84,9 @@ class VersionReader:
                 raise StoreError(f"version {self.version} has no {name} table", where) from None
             except OSError as exc:
                 raise StoreError(f"unreadable table: {exc.strerror or exc}", where) from None
+            problem = parquet_size_problem(data)
+            if problem is not None:
+                raise StoreError(f"{name} table: {problem}", where)
             try:
                 # An Arrow buffer read on this thread: with io.BytesIO (read from pyarrow's IO
                 # threads) a process exiting after the read aborted in about one run in three
@@ -163,6 +166,35 @@ def recorded_chunks(version_dir: str | Path | StoreBackend) -> dict[str, Any]:
         for rel, entry in files.items()
         if rel.startswith(prefix) and isinstance(entry, dict)
     }
+
+
+# A table is decoded whole: its footer's row and column counts are checked first (a few kB of
+# run-length encoded zeros can decode to gigabytes).
+MAX_TABLE_ROWS = 50_000_000
+MAX_TABLE_DECODED = 512 * 1024 * 1024
+
+
+def parquet_size_problem(data: bytes) -> str | None:
+    """Why a Parquet file must not be decoded (its footer declares more rows or decoded bytes
+    than a table of a store can need), or None. An unreadable footer is left to the reader."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        meta = pq.read_metadata(pa.BufferReader(data))
+    except Exception:  # pyarrow raises ArrowInvalid, OSError, ...: read_table names it
+        return None
+    if meta.num_rows > MAX_TABLE_ROWS:
+        return f"declares {meta.num_rows:,} rows, over the limit of {MAX_TABLE_ROWS:,} (not read)"
+    # the footer's byte counts describe the encoded pages (a run of zeros is a few bytes);
+    # what decoding allocates is about 8 bytes per cell (more for strings)
+    cells = meta.num_rows * max(1, meta.num_columns)
+    if cells * 8 > MAX_TABLE_DECODED:
+        return (
+            f"declares {meta.num_rows:,} rows × {meta.num_columns} columns, about "
+            f"{cells * 8:,} bytes decoded, over the limit of {MAX_TABLE_DECODED:,} (not read)"
+        )
+    return None
 
 
 def check_regular_tree(files: StoreBackend, where: Any) -> None:

@@ -648,3 +648,26 @@ def n_frames_huge(work: Path, store: Path) -> list[Command]:
         )
         reseal(version(store, name))
     return readers(work, store, "n_frames|frame", write=False)
+
+
+def rle_bomb_parquet(path: Path, rows: int = 300_000_000) -> None:
+    """A Parquet file of ``rows`` rows of zeros in a few MB (run-length encoded): decoding it
+    whole would allocate gigabytes. Written in row groups of 10 million (bounded memory)."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    block = pa.table({"n_frames": pa.array(np.zeros(10_000_000, np.int64))})
+    with pq.ParquetWriter(path, block.schema) as writer:
+        for _ in range(rows // 10_000_000):
+            writer.write_table(block)
+
+
+@hostile_case("arrays", note="a 2 MB sequences.parquet declaring 300 million rows")
+def parquet_row_bomb(work: Path, store: Path) -> list[Command]:
+    path = version(store) / "sequences.parquet"
+    tmp = path.with_name("bomb.plant")
+    rle_bomb_parquet(tmp)
+    os.replace(tmp, path)
+    reseal(version(store))
+    return readers(work, store, "rows", write=False)
