@@ -330,3 +330,19 @@ def test_parquet_declaring_millions_of_rows_is_refused_from_its_footer(tmp_path)
     assert path.stat().st_size < 2_000_000
     problem = parquet_size_problem(path.read_bytes())
     assert problem is not None and "60,000,000 rows, over the limit" in problem
+
+
+def test_declared_chunks_beyond_the_files_present_are_one_problem_not_a_listing(tmp_path):
+    from dancedata.store.integrity import chunk_requirements
+
+    array = tmp_path / "data.zarr" / "motion" / "rotmat"
+    array.mkdir(parents=True)
+    meta = _meta(shape=[900_000, 24, 3, 3], chunk_shape=[1, 24, 3, 3])
+    (array / "zarr.json").write_text(json.dumps(meta))
+    (array / "c" / "0" / "0" / "0").mkdir(parents=True)
+    (array / "c" / "0" / "0" / "0" / "0").write_bytes(b"x")
+    started = time.process_time()
+    required, problems = chunk_requirements(tmp_path)
+    assert time.process_time() - started < 1.0
+    assert required == {}
+    assert len(problems) == 1 and "call for 900,000 chunks, but its folder holds 1" in problems[0]
