@@ -212,6 +212,21 @@ TABLE_BOUNDS: dict[str, tuple[tuple[str, str], ...]] = {
         ("frame_stop", "frame"),
         ("bpm", "bpm"),
     ),
+    "beats": (
+        ("beat", "frame"),
+        ("frame", "frame"),
+        ("measure", "frame"),
+        ("beat_in_measure", "frame"),
+        ("bpm", "bpm"),
+    ),
+    "phrases": (
+        ("phrase", "frame"),
+        ("measure_start", "frame"),
+        ("measure_stop", "frame"),
+        ("frame_start", "frame"),
+        ("frame_stop", "frame"),
+    ),
+    "normalization": (("column", "frame"), ("n_frames", "frame")),
     "keyframes": (
         ("frame", "frame"),
         ("frame_in_sequence", "frame"),
