@@ -49,6 +49,10 @@ class UnsafeFile(OSError):
     """A store file that is not a regular file, or larger than the reader's limit."""
 
 
+class FolderNotFile(UnsafeFile, IsADirectoryError):
+    """A folder where a file was expected (callers that catch IsADirectoryError still do)."""
+
+
 def kind_of(mode: int) -> str:
     if stat.S_ISLNK(mode):
         return "a symbolic link"
@@ -65,9 +69,10 @@ def kind_of(mode: int) -> str:
 
 def not_regular(path: str | Path, mode: int) -> UnsafeFile:
     """The error for a store entry that is a link, FIFO, device, ... (``mode`` from lstat)."""
-    code = errno.EISDIR if stat.S_ISDIR(mode) else errno.EINVAL
+    if stat.S_ISDIR(mode):
+        return FolderNotFile(errno.EISDIR, "is a folder, not a file", str(path))
     return UnsafeFile(
-        code,
+        errno.EINVAL,
         f"is {kind_of(mode)}, not a regular file (a store holds regular "
         "files only; nothing is read through it)",
         str(path),
