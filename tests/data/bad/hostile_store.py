@@ -527,7 +527,7 @@ def build_area_symlink(work: Path, store: Path) -> list[Command]:
     edit_json(store / "store.json", lambda p: p.update(latest="v1"))
     s = str(store)
     return [
-        Command(["featurize", s, "-q", "--stems", "offline"], expect="symbolic link", json=True)
+        Command(["featurize", s, "-q", "--stems", "offline"], expect="symbolic link", json=False)
     ]
 
 
