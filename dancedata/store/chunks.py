@@ -70,8 +70,9 @@ class ChunkGrid:
         from dancedata.store.metadata_checks import decoded_chunk_bytes
 
         names = tuple(c.get("name") if isinstance(c, dict) else str(c) for c in codecs)
-        return cls(shape, chunk_shape, separator, name == "default", crc,
-                   decoded_chunk_bytes(meta), names)
+        return cls(
+            shape, chunk_shape, separator, name == "default", crc, decoded_chunk_bytes(meta), names
+        )
 
     @property
     def n_chunks(self) -> int:
@@ -163,11 +164,15 @@ def zstd_content_size(frame: Any) -> int | None:
 
 
 def blosc_content_size(frame: Any) -> int | None:
-    """The decoded size a blosc frame declares (bytes 4-7 of its 16-byte header), or None."""
+    """The decoded size a blosc frame declares (bytes 4-7 of its 16-byte header), or None when
+    the bytes are not one blosc frame (a header whose version is not 1-4, or whose compressed
+    size, bytes 12-15, is not the frame's length)."""
     import numpy as np
 
     raw = np.frombuffer(frame, dtype=np.uint8)
-    if raw.shape[0] < 16:
+    if raw.shape[0] < 16 or not 1 <= int(raw[0]) <= 4:
+        return None
+    if int.from_bytes(raw[12:16].tobytes(), "little") != raw.shape[0]:
         return None
     return int.from_bytes(raw[4:8].tobytes(), "little")
 
@@ -183,7 +188,10 @@ def decoded_size_problem(grid: ChunkGrid, data: Any) -> str | None:
         if name in grid.codecs:
             declared = size_of(body)
             if declared is None:
-                return f"its {name} header declares no decoded size (refused: it could be any)"
+                return (
+                    f"not a {name} frame with a declared decoded size (refused before decoding: "
+                    "it could be any size, or not decode at all)"
+                )
             if declared > grid.chunk_bytes:
                 return (
                     f"its {name} header declares {declared:,} decoded bytes, but a chunk of this "

@@ -402,7 +402,7 @@ def with_crc32c(data: bytes) -> bytes:
 def zstd_bomb(work: Path, store: Path) -> list[Command]:
     # the first chunk of every zstd motion array: whichever one a command reads
     for meta in (version(store) / "data.zarr" / "motion").glob("*/zarr.json"):
-        if '"zstd"' not in meta.read_text():
+        if "zstd" not in [c.get("name") for c in json.loads(meta.read_text())["codecs"]]:
             continue
         for chunk in (meta.parent / "c").rglob("*"):
             if chunk.is_file():
@@ -413,6 +413,15 @@ def zstd_bomb(work: Path, store: Path) -> list[Command]:
     return readers(work, store, "chunk", write=False, passes=("info",)) + validate_only(
         store, "chunk", True
     )
+
+
+@hostile_case("arrays", note="a zstd frame in place of a blosc chunk, crc32c matching")
+def blosc_chunk_not_blosc(work: Path, store: Path) -> list[Command]:
+    meta = version(store) / "data.zarr" / "motion" / "keypoints3d" / "zarr.json"
+    chunk = next(p for p in (meta.parent / "c").rglob("*") if p.is_file())
+    replace(chunk, with_crc32c(zstd_rle_bomb(1000)))
+    reseal(version(store))
+    return readers(work, store, "blosc", write=False, passes=("info", "report"))
 
 
 @hostile_case("arrays", note="a chunk that is a FIFO", timeout_s=60)
