@@ -409,8 +409,9 @@ def zstd_bomb(work: Path, store: Path) -> list[Command]:
                 replace(chunk, with_crc32c(zstd_rle_bomb(800 * 1024 * 1024)))
                 break
     reseal(version(store))
-    # info and report read metadata and tables only: nothing to refuse there
-    return readers(work, store, "chunk", write=False, passes=("info",)) + validate_only(
+    # info reads metadata and tables only, render draws the (blosc) keypoints: nothing to
+    # refuse there
+    return readers(work, store, "chunk", write=False, passes=("info", "render")) + validate_only(
         store, "chunk", True
     )
 
@@ -421,7 +422,8 @@ def blosc_chunk_not_blosc(work: Path, store: Path) -> list[Command]:
     chunk = next(p for p in (meta.parent / "c").rglob("*") if p.is_file())
     replace(chunk, with_crc32c(zstd_rle_bomb(1000)))
     reseal(version(store))
-    return readers(work, store, "blosc", write=False, passes=("info", "report"))
+    # render draws keypoints3d (refused); info, report and plot never decode it
+    return readers(work, store, "blosc", write=False, passes=("info", "report", "plot"))
 
 
 @hostile_case("arrays", note="a chunk that is a FIFO", timeout_s=60)
