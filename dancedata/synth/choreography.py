@@ -18,7 +18,7 @@ from dancedata.synth.styles import ARM_POSES, DanceStyle
 
 PHRASE_BEATS = 8
 HALF_STANCE_M = 0.13  # half the distance between the feet when standing
-FLOOR_DROP_M = 0.48  # pelvis drop in floor work
+FLOOR_DROP_M = 0.40  # pelvis drop in floor work
 FLOOR_PITCH = 1.35  # forward pitch of the pelvis in floor work (≈77°)
 SQUAT_DROP_M = 0.28
 SQUAT_PITCH = 0.45
@@ -26,7 +26,7 @@ LEAN_PITCH = -0.25
 MAX_TRAVEL_M = 0.4  # one step moves the body at most this far (before the sFM factor)
 MAX_SPREAD_M = 0.8  # the feet are at most this far apart
 STAGGER_M = 0.15  # spread of how far a landing foot is ahead of (or behind) the body
-ARM_REACH = 0.7
+ARM_REACH = 0.55
 CENTRE_M = np.array([0.0, 0.6])  # (x, z) the dancer comes back to (the cameras aim there)
 
 _ARM_NAMES = tuple(ARM_POSES)
@@ -55,7 +55,7 @@ class BeatPlan:
 
 def _phrase(style: DanceStyle, rng: np.random.Generator, situation: str) -> dict[str, list]:
     """One 8-beat phrase of moves (relative: travel per step, turns, levels, poses)."""
-    travel_scale = 1.6 if situation == "sFM" else 0.6
+    travel_scale = 2.0 if situation == "sFM" else 0.6
     levels = []
     for _ in range(PHRASE_BEATS // 2):
         r = rng.random()
@@ -105,9 +105,9 @@ def _phrase(style: DanceStyle, rng: np.random.Generator, situation: str) -> dict
         moves["kick"].append(kick)
         moves["spin"].append(spin)
         moves["level"].append(level)
-        # Poses are taken 70 % of the way from hanging arms; elbows vary the most.
+        # Poses are taken 55 % of the way from hanging arms; elbows vary the most.
         keyed = down + ARM_REACH * (np.array(arms) - down)
-        jitter = rng.normal(0, 0.12 * style.energy, (2, 4)) * np.array([1.0, 1.0, 1.0, 2.5])
+        jitter = rng.normal(0, 1, (2, 4)) * np.array([0.12 * style.energy] * 3 + [0.45])
         moves["arms"].append(keyed + jitter)
         torso = style.energy * np.array(
             [rng.normal(0.2, 0.2), rng.normal(0, 0.4), rng.normal(0, 0.2)]
@@ -119,7 +119,7 @@ def _phrase(style: DanceStyle, rng: np.random.Generator, situation: str) -> dict
         moves["lean"].append(lean)
         moves["accent"].append((1.0 if beat % 2 == 0 else 0.7) * style.energy * rng.uniform(0.6, 1))
         moves["stagger"].append(rng.normal(0.0, STAGGER_M))  # one foot ahead of the other
-        moves["height"].append(style.step_height_m * rng.uniform(1.0, 2.4))
+        moves["height"].append(style.step_height_m * rng.uniform(1.2, 2.8))
     return moves
 
 
@@ -192,12 +192,14 @@ def beat_position(n_frames: int, fps: float, bpm: float) -> np.ndarray:
 
 def transition(beat_pos: np.ndarray, attack: float, sharp: float) -> tuple[np.ndarray, np.ndarray]:
     """(previous beat index, progress s in [0, 1]) per frame: the change towards the next beat's
-    key starts ``attack`` beats before it; ``sharp`` mixes a smoothstep (0: eases in and out)
-    with s = v² (1: full speed on arrival, an abrupt stop on the beat)."""
+    key starts ``attack`` beats before it and ends, at rest, on the beat. ``sharp`` mixes a
+    smoothstep (0: speeds up and slows down evenly) with the hit s = 2v³ − v⁶ (1: top speed at
+    74 % of the way, then a hard stop in the last quarter: the accent lands on the beat)."""
     b = np.floor(beat_pos).astype(np.int64)
     u = beat_pos - b
     v = np.clip((u - (1.0 - attack)) / attack, 0.0, 1.0)
-    return b, (1.0 - sharp) * v * v * (3.0 - 2.0 * v) + sharp * v * v
+    v3 = v * v * v
+    return b, (1.0 - sharp) * v * v * (3.0 - 2.0 * v) + sharp * (2.0 * v3 - v3 * v3)
 
 
 def hit_curve(keys: np.ndarray, beat_pos: np.ndarray, attack: float, sharp: float) -> np.ndarray:

@@ -59,7 +59,7 @@ _LEG_M = float(np.linalg.norm(_THIGH[0]) + np.linalg.norm(_SHIN[0]))
 ANKLE_HEIGHT_M = 0.075  # ankle joint above the floor when the foot is planted
 MAX_REACH = 0.985  # hip-to-ankle distance at most this fraction of the leg (knees never lock)
 STAND_PELVIS_M = ANKLE_HEIGHT_M + 0.965 * _LEG_M - _HIP_OFFSETS[0, 1]
-ACCENT_DECAY_S = 0.12  # head and shoulder accents decay with this time constant
+ACCENT_PEAK_S = 0.06  # head and shoulder accents peak this long after their onset
 KICK_LIFT_M, KICK_REACH_M = 0.42, 0.30
 SPIN_LIFT_M = 0.10
 SPIN_BEATS = 0.8  # a floor spin turns once in the last 0.8 beat before its beat
@@ -140,15 +140,18 @@ def _smooth(x: np.ndarray, sigma_frames: float) -> np.ndarray:
 
 
 def _onset_accent(t: np.ndarray, bpm: float, strengths: np.ndarray) -> np.ndarray:
-    """(F,) Σ over onsets of strength · exp(−(t − onset) / τ) after each onset: every beat
-    (its plan's accent) and the music's pickup kick on the "and" of beat 4 of odd measures."""
+    """(F,) Σ over onsets of strength · x² e^(2(1 − x)), x = (t − onset) / τ after each onset:
+    a pulse that leaves rest on the onset (a jolt of acceleration there), peaks τ later and
+    fades. Onsets: every beat (its plan's accent) and the music's pickup kick on the "and" of
+    beat 4 of odd measures."""
     beat_s = 60.0 / bpm
     onsets = [(b * beat_s, float(a)) for b, a in enumerate(strengths)]
     onsets += [((4 * m + 3.5) * beat_s, 0.5) for m in range(1, len(strengths) // 4 + 1, 2)]
     env = np.zeros_like(t)
     for when, strength in onsets:
         after = t >= when
-        env[after] += strength * np.exp(-(t[after] - when) / ACCENT_DECAY_S)
+        x = (t[after] - when) / ACCENT_PEAK_S
+        env[after] += strength * x * x * np.exp(2.0 * (1.0 - x))
     return env
 
 
@@ -173,7 +176,9 @@ def synth_dance(
     plan = plan_beats(n_beats, base, rng, situation)
 
     # Facing, body level and pitch: keys reached on the beats.
-    steps_heading = hit_curve(plan.heading, beat_pos, attack, sharp)
+    # Pose changes take the whole beat and come to rest on it (the motion's speed minima, its
+    # "motion beats", fall on the music's beats); ``attack`` sets how fast a step's swing is.
+    steps_heading = hit_curve(plan.heading, beat_pos, 1.0, sharp)
     spin_angle = hit_curve(plan.spin_turn, beat_pos, SPIN_BEATS, 0.0)
     heading = steps_heading + spin_angle
     drop = hit_curve(plan.drop, beat_pos, max(attack, 0.5), 0.3)
@@ -253,22 +258,25 @@ def synth_dance(
     # Upper body: extrinsic x-y-z Euler angles per joint (x flexion, y twist, z side/abduction).
     accent = _onset_accent(t, bpm, plan.accent * vigour)
     euler = np.zeros((n_frames, 24, 3))
-    torso = hit_curve(plan.torso, beat_pos, attack, sharp) * vigour
+    torso = hit_curve(plan.torso, beat_pos, 1.0, sharp) * vigour
     for joint, share in ((3, 0.4), (6, 0.3), (9, 0.3)):
         euler[:, joint] = share * torso
     euler[:, 9, 0] += 0.05 * accent  # the chest hits the accent
     euler[:, 12, 0] = -0.4 * pitch + 0.08 * accent  # neck and head look up in floor work
-    euler[:, 15, 0] = -0.3 * pitch + 0.15 * accent
-    euler[:, 15, 1] = 0.3 * hit_curve(plan.torso[:, 1], beat_pos, attack, sharp)
-    arms = hit_curve(plan.arms, beat_pos, attack, sharp)  # (F, 2, 4)
-    shrug = 0.12 * (arms[:, :, 0] + 1.3)  # collars lift with the arms
-    euler[:, 13, 2] = 0.1 * accent + shrug[:, 0]
-    euler[:, 14, 2] = -0.1 * accent - shrug[:, 1]
+    euler[:, 15, 0] = -0.3 * pitch + 0.2 * accent
+    euler[:, 12, 1] = 0.4 * torso[:, 1]  # neck and head turn with the chest
+    euler[:, 15, 1] = 0.9 * torso[:, 1]
+    arms = hit_curve(plan.arms, beat_pos, 1.0, sharp)  # (F, 2, 4)
+    shrug = 0.35 * (arms[:, :, 0] + 1.3)  # collars lift and swing with the arms
+    euler[:, 13, 2] = 0.15 * accent + shrug[:, 0]
+    euler[:, 14, 2] = -0.15 * accent - shrug[:, 1]
+    euler[:, 13, 1] = 0.45 * arms[:, 0, 1]
+    euler[:, 14, 1] = -0.45 * arms[:, 1, 1]
     swing = (
         0.18
         * base.energy
         * vigour
-        * hit_curve(np.where(np.arange(n_beats) % 2 == 0, 1.0, -1.0), beat_pos, attack, sharp)
+        * hit_curve(np.where(np.arange(n_beats) % 2 == 0, 1.0, -1.0), beat_pos, 1.0, sharp)
     )
     for k, (shoulder, elbow, sign) in enumerate(((16, 18, 1.0), (17, 19, -1.0))):
         gamma, beta, roll_arm, flex = (arms[:, k, i] for i in range(4))

@@ -58,7 +58,7 @@ def _arms(**weights: float) -> dict[str, float]:
 
 STYLES: dict[str, DanceStyle] = {
     "gBR": DanceStyle(1.35, 0.75, 0.30, 0.12, 0.06, 0.45, 0.7, kick_prob=0.12, squat_prob=0.2,
-                      floor_prob=0.3, spin_prob=0.4, floor_every_phrase=True, turn_prob=0.2,
+                      floor_prob=0.2, spin_prob=0.4, floor_every_phrase=True, turn_prob=0.2,
                       arm_weights=_arms(guard=2.0, punch=1.5)),
     "gPO": DanceStyle(0.95, 0.45, 0.15, 0.06, 0.05, 0.25, 0.95, squat_prob=0.1,
                       arm_weights=_arms(guard=2.0, punch=2.0, spread=1.5)),
@@ -75,7 +75,7 @@ STYLES: dict[str, DanceStyle] = {
                       arm_change_prob=0.95, arm_weights=_arms(up=3.0, spread=2.5, guard=2.0)),
     "gKR": DanceStyle(1.45, 0.65, 0.22, 0.14, 0.08, 0.30, 0.95, squat_prob=0.25, lean_prob=0.15,
                       arm_weights=_arms(punch=3.0, guard=2.0, spread=1.5)),
-    "gJS": DanceStyle(0.75, 0.5, 0.18, 0.08, 0.04, 0.55, 0.4, kick_prob=0.15, squat_prob=0.1,
+    "gJS": DanceStyle(0.65, 0.4, 0.18, 0.12, 0.04, 0.55, 0.4, kick_prob=0.15, squat_prob=0.1,
                       turn_prob=0.15, arm_weights=_arms(spread=2.0, up=1.5)),
     "gJB": DanceStyle(0.8, 0.55, 0.20, 0.10, 0.03, 0.60, 0.2, kick_prob=0.25, squat_prob=0.05,
                       turn_prob=0.25, arm_weights=_arms(spread=3.0, up=2.0)),
