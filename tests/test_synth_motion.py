@@ -4,8 +4,10 @@ energy, plausible joint ranges, no constant FID feature column, and rotation and
 statistics within a factor of the real AIST++ motions (docs/STORE.md, "The synthetic twin's
 motion").
 
-Positions come from ``dancedata.synth.motion.smpl_joint_positions``, the repository's own
-forward kinematics of the synthetic skeleton (the one the generator's leg IK solves on)."""
+FID is computed on positions of the built-in ``edge_smpl_offsets`` skeleton, as the experiment
+runner computes them without a model file; contacts and accents on
+``dancedata.synth.motion.smpl_joint_positions``, the synthetic skeleton the generator's leg IK
+solves on."""
 
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from dancedata.compute.motion_features import beat_align_score_mint, motion_beat
 from dancedata.experiments.metrics import fid
 from dancedata.experiments.metrics.fid import motion_feature_matrix
 from dancedata.io.aist import read_motion
+from dancedata.smpl_skeletons import smpl_skeleton
 from dancedata.synth.catalog import FPS, demo_plan, stable_seed
 from dancedata.synth.motion import (
     ACCENT_PEAK_S,
@@ -30,6 +33,7 @@ from dancedata.synth.music import synth_dance_music
 from dancedata.synth.styles import STYLES
 
 GENRES = sorted(STYLES)
+EDGE = smpl_skeleton(None)  # the built-in edge_smpl_offsets skeleton
 STILL = [7, 8, 10, 11, 20, 21, 22, 23]  # ankles, feet, wrists, hands
 GROUPS = {
     "spine": [3, 6, 9],
@@ -57,7 +61,7 @@ def _eval_units(seed: int) -> list[np.ndarray]:
             genre=planned.genre,
             situation=planned.situation,
         )
-        units.append(smpl_joint_positions(poses, trans))
+        units.append(EDGE.positions(poses.reshape(-1, 24, 3), trans))
     return units
 
 
