@@ -64,7 +64,10 @@ def write_sequence(
     """Write one sequence's motion, keypoints3d and keypoints2d pickles; ``cameras`` are the
     setting's cameras (AIST++ JSON entries) that keypoints2d is projected through."""
     seq_seed = stable_seed(seed, planned.seq_id)
-    poses, trans_m = synth_smpl_motion(planned.n_frames, FPS, planned.bpm, seed=seq_seed)
+    poses, trans_m = synth_smpl_motion(
+        planned.n_frames, FPS, planned.bpm, seed=seq_seed, genre=planned.genre,
+        situation=planned.situation,
+    )  # fmt: skip
     rng = np.random.default_rng(seq_seed)
     scaling = np.array([rng.uniform(85.0, 100.0)], dtype=np.float32)
     _write_pickle(

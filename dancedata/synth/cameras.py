@@ -20,8 +20,8 @@ from dancedata.compute.camera import look_at
 
 N_CAMERAS = 9
 IMAGE_SIZE = (1920, 1080)
-# Where the synthetic dancer moves (synth.motion: a circle through the origin, centre z ≈ 0.6 m),
-# in cm: the point the cameras aim at.
+# Where the synthetic dancer moves (synth.choreography: steps around x = 0, z = 0.6 m, pulled
+# back there), in cm: the point the cameras aim at.
 FLOOR_TARGET_CM = np.array([0.0, 90.0, 60.0])
 
 
