@@ -109,11 +109,13 @@ def _switch_hint(result: Any, store: str | None) -> str | None:
     not, and the checkout command that makes the found version the latest (None if it is)."""
     if store is None or getattr(result, "created", True):
         return None
-    from dancedata.store.checkout import switch_hint
+    from dancedata.store.checkout import builds_on, switch_hint
     from dancedata.store.layout import StoreLayout
 
     if getattr(result, "latest", None) is None:
         result.latest = StoreLayout(store).latest()
+    if result.latest is not None and result.latest != result.version:
+        result.latest_builds_on = builds_on(store, result.latest, result.version)
     return switch_hint(store, result.version, result.latest)
 
 

@@ -59,6 +59,23 @@ def test_already_holds_names_the_latest_and_the_checkout_command(store):
     assert out == "segment: nothing to do, version v4 already holds this result"
 
 
+def test_rerun_step_under_a_latest_that_builds_on_it_suggests_no_checkout(store, raw):
+    """Re-running the ingest of a store whose latest (v4: featurized and segmented) descends from
+    v1 says so: following the old checkout hint made the un-featurized v1 the latest."""
+    out = run_cli("ingest", "aist", str(raw), "--store", str(store), "-q").stdout.strip()
+    assert out == (
+        "ingest aist: nothing to do, version v1 already holds this result; "
+        "the latest version v4 builds on it"
+    )
+    assert "dancedata checkout" not in out and "to make it the latest" not in out
+    summary = json.loads(
+        run_cli("ingest", "aist", str(raw), "--store", str(store), "-q", "--json").stdout
+    )
+    assert summary["version"] == "v1" and summary["latest"] == "v4"
+    assert summary["latest_builds_on"] is True and "hint" not in summary
+    assert StoreLayout(store).latest() == "v4"
+
+
 def test_checkout_moves_latest_and_readers_follow(store, tmp_path):
     work = tmp_path / "store"
     shutil.copytree(store, work)

@@ -109,16 +109,41 @@ def checkout_log(store: str | Path) -> list[dict[str, Any]]:
 
 def switch_hint(store: str | Path, version: str, latest: str | None) -> str | None:
     """The "how to switch" sentence for a result found in ``version`` while ``latest`` is
-    another version; None when ``version`` is the latest."""
+    another version; None when ``version`` is the latest or :func:`builds_on` it."""
     if latest is None or latest == version:
         return None
+    if builds_on(store, latest, version):
+        return None
     return f"run `dancedata checkout {store} {version}` to make it the latest"
+
+
+def builds_on(store: str | Path, latest: str, version: str) -> bool:
+    """True when ``version`` is an ancestor of ``latest`` (the manifests' ``parent`` chain) and
+    no version after it on that chain was written by the same command: then ``latest`` still
+    holds ``version``'s result (a re-run ingest under a featurized and segmented latest).
+    A later run of the same command (segment with other settings) replaced it: False."""
+    layout = StoreLayout(store)
+    try:
+        command = layout.read_manifest(version).get("command")
+        current, seen = latest, set()
+        while isinstance(current, str) and current not in seen and len(seen) < 10_000:
+            seen.add(current)
+            manifest = layout.read_manifest(current)
+            if manifest.get("command") == command:
+                return False
+            if manifest.get("parent") == version:
+                return True
+            current = manifest.get("parent")
+    except StoreError:
+        return False
+    return False
 
 
 __all__ = [
     "CHECKOUTS_KEY",
     "CheckoutResult",
     "checkout",
+    "builds_on",
     "checkout_log",
     "last_checkout",
     "normalize_version",

@@ -17,13 +17,19 @@ class CommandResult:
     # The store's latest version when the result was found (not created): the message names it
     # when it is another version, since "nothing to do" does not make that result the latest.
     latest: str | None = None
+    # True when ``latest`` descends from ``version`` and still holds its result (no later run
+    # of the same command): then there is nothing to switch to.
+    latest_builds_on: bool = False
 
     def message(self, command: str) -> str:
         if self.created:
             return f"{command}: wrote version {self.version}"
         text = f"{command}: nothing to do, version {self.version} already holds this result"
         if self.latest is not None and self.latest != self.version:
-            text += f"; the latest version is {self.latest}"
+            if self.latest_builds_on:
+                text += f"; the latest version {self.latest} builds on it"
+            else:
+                text += f"; the latest version is {self.latest}"
         return text
 
     def as_dict(self) -> dict[str, Any]:
@@ -33,4 +39,5 @@ class CommandResult:
             "counts": self.counts,
             "skipped": self.skipped,
             "latest": self.version if self.created else self.latest,  # None: not looked up
+            "latest_builds_on": self.latest_builds_on,
         }
