@@ -105,9 +105,11 @@ def check_pixels(image: np.ndarray, pixels: np.ndarray, parents, area) -> None:
         np.meshgrid(np.arange(x0 + 8, x0 + w - 8, 7), np.arange(y0 + 8, y0 + h - 8, 7)), -1
     ).reshape(-1, 2)
     near = np.full(len(grid), np.inf)
-    for j, p in enumerate(parents):
-        if finite[j]:
-            near = np.minimum(near, np.linalg.norm(grid - pixels[j], axis=1))
+    for j in np.flatnonzero(finite):
+        near = np.minimum(near, np.linalg.norm(grid - pixels[j], axis=1))
+    # ``parents`` (J,) or the (B, 2) bones drawn (SkeletonStyle.bones: with the extra bones)
+    pairs = parents if isinstance(parents, np.ndarray) else list(enumerate(parents))
+    for j, p in pairs:
         if p >= 0 and finite[j] and finite[p]:
             near = np.minimum(near, segment_distance(grid, pixels[j], pixels[p]))
     far = grid[near > 14]
@@ -174,12 +176,13 @@ def test_aist_render_frames_fps_audio_and_pixels(aist_store: Path, tmp_path: Pat
     assert np.corrcoef(music[2048:n], got["audio"][2048:n])[0, 1] > 0.9
 
     renderer = SkeletonRenderer(ds, seq, RenderOptions())
-    track = renderer.panels[0].track
     for k in (0, 333, 639):
         pixels = renderer.pixels[0][k]
         if np.isfinite(pixels).all(axis=1).sum() < 5:
             continue
-        check_pixels(got["frames"][k], pixels, track.parents, renderer.layout.drawing_area(0))
+        check_pixels(
+            got["frames"][k], pixels, renderer.styles[0].bones, renderer.layout.drawing_area(0)
+        )
     # y-up: the nose (joint 0) is drawn above the ankles (15, 16) on every frame it exists.
     kp = ds.motion(seq, "keypoints3d")
     ok = np.isfinite(kp[:, [0, 15, 16], 1]).all(axis=1)
@@ -226,7 +229,7 @@ def test_frame_range_cuts_video_and_audio(aist_store: Path, tmp_path: Path) -> N
     assert abs(int(lags[int(np.argmax(score))])) <= got["sr"] // 1000
     # The first rendered frame is sequence frame 200, drawn with the side camera.
     renderer = SkeletonRenderer(ds, seq, RenderOptions(start=200, stop=500, view="side"))
-    check_pixels(got["frames"][0], renderer.pixels[0][200], renderer.panels[0].track.parents,
+    check_pixels(got["frames"][0], renderer.pixels[0][200], renderer.styles[0].bones,
                  renderer.layout.drawing_area(0))
     # skeleton_frames gives the same images as RGB arrays (before compression).
     first = next(skeleton_frames(ds, seq, RenderOptions(start=200, stop=500, view="side")))
@@ -382,7 +385,7 @@ def test_png_still_needs_no_pyav_and_is_the_frame(aist_store: Path, tmp_path: Pa
     image = cv2.imread(str(out))
     renderer = SkeletonRenderer(aist_store, seq, RenderOptions(view="top"))
     np.testing.assert_array_equal(image, renderer.frame(241))
-    check_pixels(image[:, :, ::-1], renderer.pixels[0][241], renderer.panels[0].track.parents,
+    check_pixels(image[:, :, ::-1], renderer.pixels[0][241], renderer.styles[0].bones,
                  renderer.layout.drawing_area(0))
 
 
@@ -415,3 +418,29 @@ def test_generated_fact_rows_and_smpl_pickles_match_the_stored_motion(
     builtin = load_skeleton(ds, seq, source="smpl")
     got = load_generated(tmp_path / "fact.npy", seq, builtin)
     np.testing.assert_allclose(got.positions, builtin.positions, atol=2e-4)
+
+
+def test_coco17_figure_has_shoulder_and_hip_lines(aist_store: Path) -> None:
+    """COCO-17 parents both shoulders on the nose and each hip on its shoulder: the renderer adds
+    the shoulder line (5-6) and the hip line (11-12), drawn where the projection puts them."""
+    from dancedata.smpl import COCO17_KEYPOINTS
+
+    seq = first_seq(aist_store)
+    renderer = SkeletonRenderer(aist_store, seq, RenderOptions())
+    assert renderer.panels[0].track.joints == COCO17_KEYPOINTS
+    bones = {tuple(int(v) for v in b) for b in renderer.styles[0].bones}
+    assert {(5, 6), (11, 12)} <= bones and len(bones) == 16 + 2
+    checked = 0
+    for k in range(0, renderer.n_frames, 37):
+        px = renderer.pixels[0][k]
+        if not np.isfinite(px[[5, 6, 11, 12]]).all():
+            continue
+        image = renderer.frame(k)[:, :, ::-1].astype(np.int32)  # RGB, before any encoding
+        for a, b in ((5, 6), (11, 12)):
+            if np.linalg.norm(px[a] - px[b]) < 12:
+                continue  # seen edge-on: the line is inside the joint discs
+            for t in (0.4, 0.5, 0.6):
+                x, y = np.rint(px[a] + t * (px[b] - px[a])).astype(int)
+                assert np.abs(image[y, x] - BG_RGB).max() > 60, (k, a, b, t)
+            checked += 1
+    assert checked >= 4

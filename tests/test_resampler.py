@@ -122,3 +122,19 @@ def test_featurize_records_the_resampler_and_matches_librosa(ingested):
     )
     bad = run_cli("featurize", str(ingested), "--resampler", "best", check=False)
     assert bad.returncode == 1 and "unknown resampler 'best'" in bad.stderr
+
+
+@pytest.mark.parametrize("res_type", ["soxr_hq", "soxr_vhq", "soxr_mq", "soxr_lq", "soxr_qq"])
+def test_soxr_without_librosa_equals_librosa_resample(res_type):
+    """The soxr_* path calls soxr directly (no librosa import: seconds for ``render``); every
+    length and rate pair gives librosa.resample's samples exactly."""
+    from dancedata.io.audio_decode import _resample
+
+    rng = np.random.default_rng(3)
+    for n in (1, 7, 1000, 44_101):
+        for native, sr in ((44_100, 48_000), (48_000, 22_050), (44_100, SR), (22_050, 44_100)):
+            y = rng.standard_normal(n).astype(np.float32)
+            reference = librosa.resample(y, orig_sr=native, target_sr=sr, res_type=res_type)
+            ours = _resample(y, native, sr, res_type)
+            assert ours.dtype == np.float32 and ours.shape == reference.shape, (n, native, sr)
+            np.testing.assert_array_equal(ours, reference)

@@ -196,6 +196,15 @@ def _resample(mono: np.ndarray, native_sr: int, sr: int, res_type: str = RES_TYP
         raise InputError(f"unknown resampler {res_type!r}; choose from {', '.join(RESAMPLERS)}")
     if native_sr == sr:
         return np.ascontiguousarray(mono, dtype=np.float32)
+    if res_type.startswith("soxr"):
+        # What librosa.resample computes for soxr_* (soxr, then the length fixed to
+        # ceil(n · sr / native_sr)), without importing librosa (seconds for a renderer).
+        import soxr
+
+        y = soxr.resample(np.asarray(mono), native_sr, sr, quality=res_type)
+        n = int(np.ceil(mono.shape[-1] * float(sr) / native_sr))
+        y = y[:n] if y.shape[-1] >= n else np.pad(y, (0, n - y.shape[-1]))
+        return np.ascontiguousarray(y, dtype=np.float32)
     import librosa
 
     try:

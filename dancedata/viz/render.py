@@ -41,10 +41,10 @@ from dancedata.loader import DanceStore, open_store
 from dancedata.viz.skeleton_draw import (
     FrameLayout,
     MusicTiming,
+    SkeletonStyle,
     draw_background,
     draw_header,
     draw_skeleton,
-    joint_colours,
 )
 from dancedata.viz.skeleton_source import SkeletonTrack, load_generated, load_skeleton
 
@@ -304,7 +304,7 @@ class SkeletonRenderer:
                 self.layout.drawing_area(k),
             )
             self.panels.append(Panel(track, camera, _floor_px(track, camera, options.view)))
-        self.colours = [joint_colours(p.track.joints, len(p.track.parents)) for p in self.panels]
+        self.styles = [SkeletonStyle.of(p.track.parents, p.track.joints) for p in self.panels]
         self.pixels = [project(p.camera, p.track.positions) for p in self.panels]
         self.timing = music_timing(self.store, seq_id)
         self.background = draw_background(
@@ -333,9 +333,9 @@ class SkeletonRenderer:
         """The BGR image of main-sequence frame ``frame`` (a buffer reused by the next call)."""
         image = self._image
         np.copyto(image, self.background)
-        for k, panel in enumerate(self.panels):
+        for k in range(len(self.panels)):
             j = self.panel_frame(k, frame)
-            draw_skeleton(image, self.pixels[k][j], panel.track.parents, self.colours[k])
+            draw_skeleton(image, self.pixels[k][j], self.styles[k])
         draw_header(
             image,
             self.layout,

@@ -16,12 +16,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dancedata.smpl import COCO17_KEYPOINTS
+
 __all__ = [
     "BACKGROUND",
+    "EXTRA_BONES",
     "HEADER_PX",
     "TIMELINE_PX",
     "FrameLayout",
     "MusicTiming",
+    "SkeletonStyle",
+    "bone_pairs",
+    "draw_skeleton",
     "joint_colours",
     "timing_at",
 ]
@@ -170,28 +176,79 @@ def draw_background(
     return image
 
 
+# Bones a kinematic tree leaves out but a viewer expects: COCO-17 parents both shoulders on the
+# nose and each hip on its shoulder, so without these the torso has no shoulder or hip line.
+EXTRA_BONES: dict[tuple[str, ...], tuple[tuple[int, int], ...]] = {
+    COCO17_KEYPOINTS: ((5, 6), (11, 12)),  # left-right shoulder, left-right hip
+}
+
+
+@dataclass(frozen=True)
+class SkeletonStyle:
+    """What to draw for one skeleton, grouped by colour so that a frame is a few OpenCV calls.
+
+    Attributes:
+        bones: (B, 2) joint pairs: joint → parent, then :data:`EXTRA_BONES` of its skeleton.
+        groups: per colour, (BGR colour, indices into ``bones``, joint indices of that colour).
+    """
+
+    bones: np.ndarray
+    groups: tuple[tuple[tuple[int, int, int], np.ndarray, np.ndarray], ...]
+
+    @classmethod
+    def of(cls, parents: tuple[int, ...], joints: tuple[str, ...]) -> SkeletonStyle:
+        """Bones and colours (:func:`joint_colours`) of a skeleton; an extra bone takes the
+        centre colour."""
+        n = len(parents)
+        colours = joint_colours(joints, n)
+        pairs = [(j, p) for j, p in enumerate(parents) if 0 <= p < n]
+        bone_colours = [colours[j] for j, _ in pairs]
+        for a, b in EXTRA_BONES.get(tuple(joints), ()):
+            if max(a, b) < n:
+                pairs.append((a, b))
+                bone_colours.append(CENTRE)
+        bones = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        groups = []
+        for colour in dict.fromkeys([*bone_colours, *colours]):
+            on_bones = np.array([i for i, c in enumerate(bone_colours) if c == colour], np.int64)
+            on_joints = np.array([j for j, c in enumerate(colours) if c == colour], np.int64)
+            groups.append((colour, on_bones, on_joints))
+        return cls(bones, tuple(groups))
+
+
+def bone_pairs(parents: tuple[int, ...], joints: tuple[str, ...]) -> np.ndarray:
+    """(B, 2) joint pairs drawn as bones (:class:`SkeletonStyle`)."""
+    return SkeletonStyle.of(parents, joints).bones
+
+
 def draw_skeleton(
     image: np.ndarray,
     pixels: np.ndarray,
-    parents: tuple[int, ...],
-    colours: list[tuple[int, int, int]],
+    style: SkeletonStyle,
     radius: int = 4,
     thickness: int = 2,
 ) -> None:
-    """Bones (joint → parent) and joint discs at ``pixels`` (J, 2); NaN joints are skipped."""
+    """Bones and joint discs at ``pixels`` (J, 2); NaN joints and their bones are skipped.
+
+    One ``cv2.polylines`` call per colour for the bones, and one per colour for the joints
+    (a disc of ``radius`` is a zero-length anti-aliased line ``2 · radius`` thick)."""
     import cv2
 
     finite = np.isfinite(pixels).all(axis=1)
-    points = np.zeros((len(parents), 2), np.int32)
+    points = np.zeros(pixels.shape[:1] + (2,), np.int32)
     points[finite] = np.rint(pixels[finite]).astype(np.int32)
-    for j, p in enumerate(parents):
-        if p >= 0 and finite[j] and finite[p]:
-            pt1 = (int(points[j, 0]), int(points[j, 1]))
-            pt2 = (int(points[p, 0]), int(points[p, 1]))
-            cv2.line(image, pt1, pt2, colours[j], thickness, cv2.LINE_AA)
-    for j in np.flatnonzero(finite):
-        centre = (int(points[j, 0]), int(points[j, 1]))
-        cv2.circle(image, centre, radius, colours[j], -1, cv2.LINE_AA)
+    bones = style.bones
+    drawn = finite[bones].all(axis=1) if bones.size else np.zeros(0, bool)
+    for colour, on_bones, _ in style.groups:
+        keep = on_bones[drawn[on_bones]] if on_bones.size else on_bones
+        if keep.size:
+            segments = points[bones[keep]]  # (n, 2, 2)
+            cv2.polylines(image, list(segments), False, colour, thickness, cv2.LINE_AA)
+    for colour, _, on_joints in style.groups:
+        keep = on_joints[finite[on_joints]] if on_joints.size else on_joints
+        if keep.size:
+            dots = np.repeat(points[keep][:, None, :], 2, axis=1)  # (n, 2, 2): zero-length
+            cv2.polylines(image, list(dots), False, colour, 2 * radius, cv2.LINE_AA)
 
 
 def draw_header(
