@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dancedata.compute.bvh_units import parse_units
+from dancedata.compute.bvh_units import parse_units, size_warning
 from dancedata.errors import InputError
 from dancedata.ingest.bvh_append import (
     AppendedVersion,
@@ -65,7 +65,7 @@ from dancedata.ingest.source import (
 from dancedata.io.bvh_head import FPS_RANGE
 from dancedata.progress import progress
 from dancedata.store.command_result import CommandResult
-from dancedata.store.layout import StoreLayout
+from dancedata.store.layout import StoreLayout, warn_once
 from dancedata.store.writer import VersionWriter, base_fingerprint
 
 __all__ = ["COMMAND", "BvhIngestOptions", "BvhSource", "ingest_bvh"]
@@ -285,6 +285,9 @@ class BvhSource(Source):
     def accept(self, task: ReadTask, value: Any) -> SequenceRecord:
         item, motion, units = self.by_path[task.path], value, self.settings.units
         self.rig.check(motion, item.path)
+        unusual = size_warning(motion.size_m, units) if self.settings.check_size else None
+        if unusual is not None:
+            warn_once(f"{item.path}: {unusual}")
         self.rig.adopt_first(motion, item.seq_id, units.name, units.metres, item.path)
         track = self.tracks.get(str(item.music)) if item.music is not None else None
         return SequenceRecord(

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from dancedata.compute.bvh_units import USUAL_SIZE_M
 from dancedata.store.checkout import checkout_log
 from dancedata.store.integrity import CHECKSUMS_FILE
 from dancedata.store.layout import TABLE_FILES, StoreLayout
@@ -82,6 +84,13 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
             1 for s in sequences if (s.get("audio_truncated_frames") or 0) > 0
         )
         info["annotations_missing"] = annotations_missing(sequences)
+        sizes = [
+            float(s["rig_size_m"])
+            for s in sequences
+            if isinstance(s.get("rig_size_m"), int | float) and math.isfinite(s["rig_size_m"])
+        ]
+        if sizes:  # BVH ingest: the rig's size in metres (compute.bvh_units.rig_size)
+            info["rig_size_m"] = {"min": min(sizes), "max": max(sizes), "sequences": len(sizes)}
     if reader.has_table("music"):
         info["music_tracks"] = reader.table("music").num_rows
     if reader.has_table("measures"):
@@ -135,8 +144,11 @@ def format_info(info: dict[str, Any]) -> str:
         )
         lines.append(_genres_line(info))
         lines.append(_tempi_line(info))
+        if info.get("rig_size_m"):
+            lines.append(_rig_line(info["rig_size_m"]))
         if info.get("music_missing"):
-            lines.append(f"music     missing for {info['music_missing']} sequences")
+            n = info["music_missing"]
+            lines.append(f"music     missing for {n} sequence{'' if n == 1 else 's'}")
         for kind, n in info.get("annotations_missing", {}).items():
             if n and kind != "music":
                 lines.append(f"missing   {kind} for {n} of {info['sequences']} sequences")
@@ -182,6 +194,18 @@ def format_info(info: dict[str, Any]) -> str:
             f"-> {entry.get('version')}"
         )
     return "\n".join(lines)
+
+
+def _rig_line(rig: dict[str, Any]) -> str:
+    """The BVH rigs' size: about the body height (the arm span when larger)."""
+    low, high, n = rig["min"], rig["max"], rig["sequences"]
+    size = f"{low:.2f} m" if round(low, 2) == round(high, 2) else f"{low:.2f}-{high:.2f} m"
+    over = "" if n == 1 else f" over {n} sequences"
+    line = f"rig       {size}{over} (body size: the largest side of a frame's bounding box)"
+    usual_low, usual_high = USUAL_SIZE_M
+    if low < usual_low or high > usual_high:
+        line += f"; unusual for a person ({usual_low:g}-{usual_high:g} m): check --units"
+    return line
 
 
 def _genres_line(info: dict[str, Any]) -> str:
