@@ -92,9 +92,12 @@ class PlainProgress:
             self._write()
 
     def close(self) -> None:
+        """Write the final line, unless an exception is on its way (the error is the last
+        line a user reads, not a progress line after it)."""
         if not self._closed:
             self._closed = True
-            self._write()
+            if sys.exc_info()[0] is None:
+                self._write()
 
 
 class _Silent:
@@ -107,6 +110,17 @@ class _Silent:
 
     def close(self) -> None:
         pass
+
+
+def restart_clock(bar: Any, seconds_ago: float) -> None:
+    """Count ``bar``'s time from ``seconds_ago`` seconds before now: a step whose bar was
+    made with others up front (all jobs submitted at once) times itself from when its first
+    task started, not from the start of the command."""
+    ago = max(0.0, float(seconds_ago or 0.0))
+    if isinstance(bar, PlainProgress):
+        bar.started = time.monotonic() - ago
+    elif hasattr(bar, "start_t"):  # tqdm, whose clock is its own timer (default time.time)
+        bar.start_t = bar._time() - ago  # noqa: SLF001 - tqdm's documented clock
 
 
 def progress(

@@ -37,6 +37,20 @@ def store_locator(path: str | Path) -> str:
     return text if isinstance(path, str) and "://" in text else str(Path(text))
 
 
+def known_ids(wanted: str, ids: list[str], shown: int = 5) -> str:
+    """What an unknown id error lists: the count, then the ids closest to ``wanted`` (difflib),
+    or the first ``shown`` ids when none is close: ``4 sequences; closest: gBR_sBM_c01, ...``."""
+    import difflib
+
+    count = f"{len(ids)} sequence{'' if len(ids) == 1 else 's'}"
+    if not ids:
+        return "it has no sequences"
+    close = difflib.get_close_matches(str(wanted), ids, n=3, cutoff=0.6)
+    if close:
+        return f"{count}; closest: {', '.join(close)}"
+    return f"{count}: {', '.join(ids[:shown])}{', ...' if len(ids) > shown else ''}"
+
+
 class SequenceReader:
     """A committed version of a store, read as sequences (the generic core of
     :class:`dancedata.loader.DanceStore`)."""
@@ -102,7 +116,9 @@ class SequenceReader:
             return self._seq_rows[seq_id]
         except KeyError:
             raise StoreError(
-                f"no sequence {seq_id!r} in version {self.version}", self.path
+                f"no sequence {seq_id!r} in version {self.version} "
+                f"({known_ids(seq_id, list(self._seq_rows))})",
+                self.path,
             ) from None
 
     def music_track(self, seq_id: str) -> dict[str, Any] | None:

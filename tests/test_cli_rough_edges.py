@@ -99,7 +99,7 @@ def test_json_errors_are_one_json_object_on_stdout(tmp_path):
     }
     plain = run_cli("info", str(missing), check=False)
     assert plain.returncode == 1 and plain.stdout == ""
-    assert plain.stderr.strip() == f"error: {missing}: not a dancedata store (no store.json)"
+    assert plain.stderr.strip() == f"error: {missing}: not a dancedata store (no such directory)"
 
 
 # ------------------------------------------------------------------------- progress in logs

@@ -78,3 +78,79 @@ def test_inch_walk_under_cm_warns_and_info_shows_the_rig(real_data: Path, tmp_pa
     assert proc.stderr == ""
     info = run_cli("info", str(good)).stdout.splitlines()
     assert "rig       1.42 m (body size: the largest side of a frame's bounding box)" in info
+
+
+# ----------------------------------------------------------------------------- store messages
+
+
+@pytest.fixture(scope="module")
+def aist_store(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("hints")
+    run_cli("synth", "aist", str(root / "raw"), "--sequences", "2", "--seed", "0", "-q")
+    run_cli("ingest", "aist", str(root / "raw"), "--store", str(root / "store"), "-q")
+    run_cli("featurize", str(root / "store"), "--stems", "none", "--no-audio", "-q")
+    return root / "store"
+
+
+def test_unknown_sequence_lists_close_ids_in_render_and_plot(aist_store: Path, tmp_path) -> None:
+    import dancedata
+
+    ids = dancedata.open_store(aist_store).seq_ids()
+    wrong = ids[0][:-1] + "9"  # one character off
+    for command, out in (("render", "r.mp4"), ("plot", "p.png")):
+        line = _error_line(
+            run_cli(command, str(aist_store), wrong, str(tmp_path / out), check=False)
+        )
+        assert line.startswith(f"error: {aist_store}: no sequence '{wrong}' in version v2 (")
+        assert line.endswith(f"(2 sequences; closest: {ids[0]}, {ids[1]})") or line.endswith(
+            f"(2 sequences; closest: {ids[0]})"
+        ), line
+    line = _error_line(run_cli("plot", str(aist_store), "nope", str(tmp_path / "p.png"),
+                               check=False))  # fmt: skip
+    assert line == (
+        f"error: {aist_store}: no sequence 'nope' in version v2 (2 sequences: {ids[0]}, {ids[1]})"
+    )
+
+
+def test_array_name_off_by_a_letter_names_the_right_one(aist_store: Path) -> None:
+    import dancedata
+    from dancedata.errors import StoreError
+
+    store = dancedata.open_store(aist_store)
+    seq = store.seq_ids()[0]
+    with pytest.raises(StoreError) as err:
+        store.motion(seq, "rotmats")
+    assert str(err.value).endswith(
+        "version v2 has no array 'motion/rotmats' (did you mean 'motion/rotmat'?)"
+    )
+    assert "run featurize" not in str(err.value)
+    with pytest.raises(StoreError, match=r"has no array 'motion/zzz' \(run featurize\?\)"):
+        store.motion(seq, "zzz")
+
+
+def test_missing_path_and_folder_that_is_not_a_store_differ(tmp_path: Path) -> None:
+    missing, folder = tmp_path / "nowhere", tmp_path / "folder"
+    folder.mkdir()
+    assert _error_line(run_cli("info", str(missing), check=False)) == (
+        f"error: {missing}: not a dancedata store (no such directory)"
+    )
+    assert _error_line(run_cli("info", str(folder), check=False)) == (
+        f"error: {folder}: not a dancedata store (the directory has no store.json)"
+    )
+
+
+@pytest.mark.real_data
+def test_plot_of_a_sequence_without_music_says_so(real_data: Path, tmp_path: Path) -> None:
+    """A featurized BVH store without music: the onset panel says there is no music instead of
+    asking to run featurize (which ran)."""
+    pytest.importorskip("matplotlib")
+    from dancedata.viz.plot import sequence_figure
+
+    store = tmp_path / "s"
+    bvh = real_data / "bvh" / "01_01.bvh"
+    run_cli("ingest", "bvh", str(bvh), "--store", str(store), "--units", "0.056444", "-q")
+    run_cli("featurize", str(store), "-q")
+    fig = sequence_figure(store, "01_01")
+    texts = [t.get_text() for ax in fig.axes for t in ax.texts]
+    assert "no music for this sequence: no onset envelope" in texts
+    assert not any("featurize" in t for t in texts), texts

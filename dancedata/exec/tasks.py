@@ -21,7 +21,7 @@ from functools import partial
 from typing import Any, Protocol
 
 from dancedata.exec.executors import Executor
-from dancedata.progress import progress_bar
+from dancedata.progress import progress_bar, restart_clock
 from dancedata.store.build import BuildArea
 
 
@@ -112,12 +112,16 @@ def run_tasks(build: BuildArea, jobs: Sequence[Job], executor: Executor) -> Task
         bar.update(len(resumed))
         bars.append(bar)
     calls = [partial(_run_and_mark, build, jobs[j].kind, jobs[j].fn) for j, _ in todo]
+    timed: set[int] = set()
     try:
         for index, result in executor.map_unordered(
             _apply, list(zip(calls, [t for _, t in todo], strict=True))
         ):
             j, task = todo[index]
             report.results[f"{jobs[j].kind}/{task.id}"] = result
+            if j not in timed:  # the step's time counts from its first task's start
+                timed.add(j)
+                restart_clock(bars[j], result.get("_seconds", 0.0))
             bars[j].update(1)
     finally:
         for bar in bars:

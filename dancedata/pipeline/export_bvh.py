@@ -50,6 +50,7 @@ from dancedata.io.bvh import (
     write_bvh,
 )
 from dancedata.io.bvh_attrs import is_bvh_skeleton, skeleton_from_attrs
+from dancedata.sequence_reader import known_ids
 from dancedata.store.reader import VersionReader
 
 __all__ = ["BvhExportOptions", "BvhExportResult", "export_bvh", "sequence_clip"]
@@ -107,10 +108,9 @@ def _sequence_row(reader: VersionReader, seq_id: str) -> dict[str, Any]:
     for row in rows:
         if row["seq_id"] == seq_id:
             return row
-    sample = ", ".join(r["seq_id"] for r in rows[:5])
     raise StoreError(
-        f"no sequence {seq_id!r} in version {reader.version} ({len(rows)} sequences: {sample}"
-        f"{', ...' if len(rows) > 5 else ''})",
+        f"no sequence {seq_id!r} in version {reader.version} "
+        f"({known_ids(seq_id, [r['seq_id'] for r in rows])})",
         reader.path,
     )
 

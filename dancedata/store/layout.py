@@ -237,6 +237,15 @@ class StoreLayout:
         self.backend.invalidate()
         return self.backend.is_file(STORE_FILE)
 
+    def _missing_pointer(self) -> str:
+        """Why there is no store.json: nothing at the path, or a folder that is not a store."""
+        noun = self.backend.root_noun
+        try:
+            present = self.backend.is_dir("")
+        except OSError:
+            present = True  # cannot tell: say only what is known
+        return f"the {noun} has no store.json" if present else f"no such {noun}"
+
     def check_not_a_file(self) -> None:
         """StoreError when the store path is an existing file rather than a directory."""
         if self.backend.is_file(""):
@@ -253,7 +262,7 @@ class StoreLayout:
                 self.store_file,
             )
         if not self.exists():
-            raise StoreError("not a dancedata store (no store.json)", self.root)
+            raise StoreError(f"not a dancedata store ({self._missing_pointer()})", self.root)
         try:
             text = self.backend.read_small(STORE_FILE, POINTER_LIMIT)
         except FileNotFoundError:

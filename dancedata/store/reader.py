@@ -115,9 +115,11 @@ class VersionReader:
 
     def array(self, name: str) -> zarr.Array:
         if not self.has_array(name):
-            raise StoreError(
-                f"version {self.version} has no array {name!r} (run featurize?)", self.path
-            )
+            import difflib
+
+            close = difflib.get_close_matches(name, self.array_names(), n=3, cutoff=0.8)
+            hint = f"did you mean {', '.join(map(repr, close))}?" if close else "run featurize?"
+            raise StoreError(f"version {self.version} has no array {name!r} ({hint})", self.path)
         return self.root[name]  # type: ignore[index]
 
     def array_names(self) -> list[str]:

@@ -82,7 +82,10 @@ def _panel_waveform(ax: Axes, d: SequencePlotData) -> None:
 
 def _panel_onset(ax: Axes, d: SequencePlotData) -> None:
     if d.onset_env is None:
-        _note(ax, "no audio/onset_env (run `dancedata featurize`)")
+        if not d.audio_frames:  # featurize has nothing to compute the envelope from
+            _note(ax, "no music for this sequence: no onset envelope")
+        else:
+            _note(ax, "no audio/onset_env (run `dancedata featurize`)")
     else:
         t = d.seconds(np.arange(d.onset_env.shape[0]))
         ax.plot(t, d.onset_env, color="k", linewidth=0.8, label="onset envelope")
