@@ -154,3 +154,33 @@ def test_plot_of_a_sequence_without_music_says_so(real_data: Path, tmp_path: Pat
     texts = [t.get_text() for ax in fig.axes for t in ax.texts]
     assert "no music for this sequence: no onset envelope" in texts
     assert not any("featurize" in t for t in texts), texts
+
+
+# ----------------------------------------------------------------------------- missing music
+
+
+def test_video_without_an_audio_track_says_no_music_was_stored(tmp_path: Path) -> None:
+    pytest.importorskip("av")
+    from tests.test_ingest_video import generated
+
+    video, poses = generated(tmp_path, 30.0, 40)
+    store = tmp_path / "s"
+    proc = run_cli("ingest", "video", str(video), "--poses", str(poses), "--store", str(store),
+                   "-q")  # fmt: skip
+    assert proc.stderr.splitlines() == [
+        f"warning: {video}: the video has no audio track, so no music is stored for it "
+        "(--music FILE gives it music)"
+    ]
+    assert proc.stdout.strip() == "ingest video: wrote version v1"
+
+
+def test_allow_missing_music_reads_no_music_headers(tmp_path: Path) -> None:
+    import shutil
+
+    raw = tmp_path / "raw"
+    run_cli("synth", "aist", str(raw), "--sequences", "2", "--seed", "0", "-q")
+    shutil.rmtree(raw / "wav")
+    proc = run_cli("ingest", "aist", str(raw), "--store", str(tmp_path / "s"),
+                   "--allow-missing-music")  # fmt: skip
+    assert "read music headers" not in proc.stderr, proc.stderr
+    assert "checksums: " in proc.stderr  # the other steps still report

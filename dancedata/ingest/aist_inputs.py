@@ -203,11 +203,9 @@ def music_rows(
     frames: dict[str, int] = {}
     unreadable: dict[str, InputError] = {}
     start = 0
-    for music_id, path in progress(
-        inventory.music_paths.items(), "read music headers", unit="file"
-    ):
-        if path is None:
-            continue
+    present = [(music_id, path) for music_id, path in inventory.music_paths.items() if path]
+    # only the files found (--allow-missing-music): no "3/3 file" when none was read
+    for music_id, path in progress(present, "read music headers", unit="file") if present else ():
         try:
             info = audio_info(path)
             if info.n_samples == 0:

@@ -72,6 +72,7 @@ from dancedata.ingest.video_records import (
 )
 from dancedata.progress import progress
 from dancedata.store.command_result import CommandResult
+from dancedata.store.layout import warn_once
 
 __all__ = ["COMMAND", "VideoIngestOptions", "VideoSource", "ingest_video"]
 
@@ -233,6 +234,11 @@ class VideoSource(Source):
             check_consistent(self.first, seq)  # a setting problem: never skipped
         self.skips.skipped += [{"path": p, "error": e} for p, e in seq.poses.bad_files]
         music, poses, options = seq.music, seq.poses, self.options
+        if item.audio_track and read.audio is None and music is None:
+            warn_once(
+                f"{item.inputs.video}: the video has no audio track, so no music is stored for "
+                "it (--music FILE gives it music)"
+            )
         return SequenceRecord(
             seq_id=item.inputs.seq_id,
             source="video",
