@@ -107,20 +107,48 @@ def run_command(
 @experiment_app.command("table")
 def table_command(
     table_id: Annotated[
-        str, typer.Argument(help="Seed table id (4.1 … 4.13, CG-1, CG-2, CG-4) or any name.")
-    ],
+        str | None,
+        typer.Argument(
+            help="Seed table id (4.1 … 4.13, CG-1, CG-2, CG-4), or the config id of a run in "
+            "--results (renders each table its config lists); --list shows them."
+        ),
+    ] = None,
     results: Annotated[
         list[Path],
         typer.Option("--results", "-r", help="Results folder(s) of `experiment run`. Repeatable."),
-    ],
+    ] = [],  # noqa: B006
     fmt: Annotated[str, typer.Option("--format", "-f", help="md, latex or csv.")] = "md",
     compare_seed: Annotated[
-        bool, typer.Option("--compare-seed", help="Each cell as: ours (seed).")
+        bool, typer.Option("--compare-seed", help="Each cell as: ours (seed), and Δ columns.")
+    ] = False,
+    list_ids: Annotated[
+        bool, typer.Option("--list", help="List the table ids (and the runs in --results).")
     ] = False,
 ) -> None:
     """Render a seed table's layout (caption, row/column order, number format) from results;
-    empty cells show "—" with the recorded reason as a footnote."""
-    from dancedata.experiments.tables import load_results, render_table
+    empty cells show "—" with the recorded reason as a footnote.
 
+    Example: dancedata experiment table thesis-no-music --results results/thesis-no-music
+    --compare-seed"""
+    from dancedata.errors import InputError
+    from dancedata.experiments.tables import (
+        list_tables,
+        load_results,
+        render_table,
+        resolve_table,
+        run_tables,
+    )
+
+    runs = run_tables(list(results))
+    if list_ids:
+        typer.echo(list_tables(runs), nl=False)
+        return
+    if table_id is None:
+        raise InputError("give a table id (or --list to see them)")
+    if not results:
+        raise InputError("--results: give the results folder of `dancedata experiment run`")
     rows, skipped = load_results(list(results))
-    typer.echo(render_table(table_id, rows, skipped, fmt, compare_seed), nl=False)
+    rendered = [
+        render_table(one, rows, skipped, fmt, compare_seed) for one in resolve_table(table_id, runs)
+    ]
+    typer.echo("\n".join(rendered), nl=False)

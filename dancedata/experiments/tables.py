@@ -88,10 +88,14 @@ def _why(reasons: dict, row_key: str, n: int, metric: str) -> str:
     return "not in the results (no run of this row, N and metric)"
 
 
-def _demo_layout(results: list[dict[str, Any]], table_id: str) -> dict[str, Any]:
+def _demo_layout(results: list[dict[str, Any]], table_id: str,
+                 skipped: list[dict[str, Any]] | None = None) -> dict[str, Any]:  # fmt: skip
+    """Every row key × N of the results for the metric(s) found; rows the run skipped
+    entirely stay in the table (their cells footnoted with the recorded reason)."""
     metrics = sorted({r["metric"] for r in results})
     ns = sorted({int(r["n_keyframes"]) for r in results})
     rows = list(dict.fromkeys(r["row_key"] for r in results))
+    rows += [k for k in dict.fromkeys(s["row_key"] for s in skipped or []) if k not in rows]
     if not results:
         raise InputError(f"no seed table {table_id!r} and no results to lay out")
     return {
@@ -116,7 +120,7 @@ def build(table_id: str, results: list[dict[str, Any]], skipped: list[dict[str, 
         if not table_id or table_id.upper().startswith(("CG", "4.")):
             known = ", ".join(tables)
             raise InputError(f"unknown seed table {table_id!r}; known: {known}")
-        spec = _demo_layout(results, table_id)
+        spec = _demo_layout(results, table_id, skipped)
     found = _lookup(results)
     reasons = _reasons(skipped)
     layout = spec["layout"]
@@ -155,8 +159,24 @@ def build(table_id: str, results: list[dict[str, Any]], skipped: list[dict[str, 
     return Rendered(spec["id"], spec["caption"], header, labels, cells, fmts)
 
 
+MIN_SIGNIFICANT = 2  # a fixed-point format showing fewer digits of a value falls back to %.4g
+
+
 def _number(value: float | None, fmt: str) -> str:
-    return DASH if value is None else fmt % value
+    """``fmt % value``, except that a fixed-point format (``%.2f``) that would show fewer
+    than :data:`MIN_SIGNIFICANT` significant digits of a non-zero value (4.954e-05 as 0.00,
+    0.01712 as 0.02) gives ``%.4g`` instead."""
+    if value is None:
+        return DASH
+    import math
+    import re
+
+    fixed = re.fullmatch(r"%\.(\d+)f", fmt)
+    if fixed and value != 0 and math.isfinite(value):
+        shown = int(fixed[1]) + math.floor(math.log10(abs(value))) + 1
+        if shown < MIN_SIGNIFICANT:
+            return f"{value:.4g}"
+    return fmt % value
 
 
 def _cell_text(cell: Cell, fmt: str, notes: list[str], compare_seed: bool,
@@ -176,7 +196,11 @@ def _relative(cell: Cell) -> str:
     """The relative difference block of ``compare_seed`` (spec §5.5), in percent."""
     if cell.value is None or cell.seed is None or cell.seed == 0:
         return DASH
-    return f"{100.0 * (cell.value - cell.seed) / abs(cell.seed):+.0f}%"
+    change = 100.0 * (cell.value - cell.seed) / abs(cell.seed)
+    text = f"{change:+.0f}%"
+    if text in ("-100%", "+0%", "-0%") and change not in (-100.0, 0.0):
+        text = f"{change:+.2f}%"  # -99.96%, not -100% (ours is not zero); +0.40%, not +0%
+    return text
 
 
 def render_table(table_id: str, results: list[dict[str, Any]],
@@ -251,6 +275,54 @@ def _latex(table: Rendered, body: list[list[str]], notes: list[str], title: str)
         out.append(f"\\par\\footnotesize\\textsuperscript{{{i}}} {_tex(note)}")
     out.append("\\end{table}")
     return "\n".join(out) + "\n"
+
+
+def run_tables(folders: list[str | Path]) -> dict[str, list[str]]:
+    """Per experiment run in ``folders``: its config id → the table ids its config lists."""
+    from dancedata.experiments.runner import read_results
+
+    out: dict[str, list[str]] = {}
+    for folder in folders:
+        _, record = read_results(Path(folder))
+        config_id = record.get("config_id")
+        tables = record.get("tables")
+        if isinstance(config_id, str):
+            listed = [t for t in tables if isinstance(t, str)] if isinstance(tables, list) else []
+            out.setdefault(config_id, listed or [config_id])
+    return out
+
+
+def table_ids(runs: dict[str, list[str]] | None = None) -> list[str]:
+    """What ``experiment table`` accepts: the seed tables' ids, then each run's config id and
+    the tables it lists."""
+    ids = list(seed_tables()["tables"])
+    for config_id, listed in (runs or {}).items():
+        ids += [i for i in (config_id, *listed) if i not in ids]
+    return ids
+
+
+def list_tables(runs: dict[str, list[str]] | None = None) -> str:
+    """``experiment table --list``: one line per id with what it is."""
+    lines = []
+    for table_id, spec in seed_tables()["tables"].items():
+        caption = spec.get("caption", "")
+        lines.append(f"{table_id:<8} {caption[:90]}{'…' if len(caption) > 90 else ''}")
+    for config_id, listed in (runs or {}).items():
+        lines.append(f"{config_id:<8} the run of config {config_id}: tables {', '.join(listed)}")
+    return "\n".join(lines) + "\n"
+
+
+def resolve_table(table_id: str, runs: dict[str, list[str]]) -> list[str]:
+    """The tables ``table_id`` stands for: a run's config id → each table its config lists; a
+    seed table or a table a run lists → itself; anything else: InputError with the list."""
+    if table_id in runs:
+        return runs[table_id]
+    if table_id in table_ids(runs):
+        return [table_id]
+    raise InputError(
+        f"unknown table {table_id!r}; known: {', '.join(table_ids(runs))} "
+        "(`dancedata experiment table --list` says what each is)"
+    )
 
 
 def load_results(folders: list[str | Path]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
