@@ -98,24 +98,35 @@ class EvaluateSummary:
         return {"out": str(self.out), **self.record}
 
     def table(self) -> str:
-        """The results as a fixed-width text table."""
-        lines = [f"{'metric':<22}{'value':>14}{'units':>7}{'frames':>9}  not scored"]
+        """The results as a fixed-width text table, a line per metric (scored or not), then
+        what the columns mean and a note on every value a reader could misread."""
+        total = self.record["n_sequences"]
+        lines = [f"{'metric':<22}{'value':>14}{'sequences':>11}{'n_items':>9}{'frames':>9}"]
         for row in self.record["results"]:
             value = "nan" if row["value"] is None else f"{row['value']:.6g}"
+            scored = f"{total - len(row['unscored'])}/{total}"
             lines.append(
-                f"{row['metric']:<22}{value:>14}{row['n_units']:>7}{row['n_frames']:>9}"
-                f"  {len(row['unscored'])}"
+                f"{row['metric']:<22}{value:>14}{scored:>11}{row['n_units']:>9}"
+                f"{row['n_frames']:>9}"
             )
         for name, reason in self.record["skipped_metrics"].items():
-            lines.append(f"{name:<22}{'—':>14}{0:>7}{0:>9}  ({reason})")
+            lines.append(f"{name:<22}{'—':>14}{f'0/{total}':>11}{0:>9}{0:>9}  ({reason})")
+        lines.append(
+            "sequences: scored of the split's; n_items: the sequences, measures or music pieces "
+            "a value is computed over (its convention in results.json); frames: motion frames "
+            "scored"
+        )
         for row in self.record["results"]:
             constant = row["details"].get("constant_ref_columns", 0)
             if constant and not row["details"].get("dropped_columns"):
                 lines.append(
                     f"note: {row['metric']}: {constant} feature column(s) constant in the ground "
-                    "truth, z-scored by 1e-10 (EXPERIMENTS.md §4.2 hazard); "
+                    "truth, z-scored by 1e-10 (docs/STORE.md, Scoring generated motion); "
                     "--drop-constant-ref-columns leaves them out"
                 )
+            note = _range_note(row["metric"], row["value"])
+            if note:
+                lines.append(f"note: {note}")
         return "\n".join(lines)
 
     def convention_row(self) -> str | None:
@@ -139,13 +150,38 @@ class EvaluateSummary:
         )
 
     def message(self, command: str) -> str:
+        results = self.record["results"]
+        total = self.record["n_sequences"]
+        n_metrics = len(results) + len(self.record["skipped_metrics"])
+        counts = sorted({total - len(r["unscored"]) for r in results}, reverse=True)
+        on = " or ".join(str(c) for c in counts) if counts else "0"
         head = (
             f"{command}: {self.record['store_version']} {self.record['split']}, "
-            f"{self.record['n_scored']} of {self.record['n_sequences']} sequences scored; "
+            f"{len(results)} of {n_metrics} metrics scored (on {on} of {total} sequences); "
             f"record in {self.out}"
         )
         row = self.convention_row()
         return head + "\n" + self.table() + ("" if row is None else "\n" + row)
+
+
+# Ratio-like metrics and what a value outside [0, 1] means (metrics/beats.py): coverage is a
+# ratio of two counts, not a fraction of one.
+_OUTSIDE_UNIT_RANGE = {
+    "beat_coverage": "= motion beats / music beats (B_k / B_m), not a fraction: above 1 the "
+    "motion has more kinematic beats than the music has beats",
+}
+_UNIT_RANGE = {"beat_hit_rate", "beat_accuracy", "bas_mint", "bas_bailando"}
+
+
+def _range_note(metric: str, value: float | None) -> str | None:
+    """Why ``value`` of a ratio-like metric lies outside [0, 1], or None when it does not."""
+    if value is None or not np.isfinite(value) or 0.0 <= value <= 1.0:
+        return None
+    if metric in _OUTSIDE_UNIT_RANGE:
+        return f"{metric} {value:.3g} {_OUTSIDE_UNIT_RANGE[metric]}"
+    if metric in _UNIT_RANGE:
+        return f"{metric} {value:.3g} is outside [0, 1], which its definition bounds (should not happen: please report it)"
+    return None
 
 
 # ------------------------------------------------------------------------- reading each side
