@@ -45,7 +45,7 @@ def test_headline_counts_metrics_and_notes_explain_values() -> None:
     assert text[1] == "metric                         value  sequences  n_items   frames"
     assert text[2] == "mse                             0.25        6/6        6     3384"
     assert text[4] == "beat_coverage                   1.69        4/6        4     2000"
-    assert text[6] == "fpd                                —        0/6        0        0  (no rotations)"
+    assert text[6] == f"{'fpd':<22}{'—':>14}{'0/6':>11}{0:>9}{0:>9}  (no rotations)"
     assert text[7].startswith("sequences: scored of the split's; n_items: the sequences, ")
     assert text[8] == (
         "note: fid_k: 3 feature column(s) constant in the ground truth, z-scored by 1e-10 "

@@ -180,7 +180,10 @@ def _range_note(metric: str, value: float | None) -> str | None:
     if metric in _OUTSIDE_UNIT_RANGE:
         return f"{metric} {value:.3g} {_OUTSIDE_UNIT_RANGE[metric]}"
     if metric in _UNIT_RANGE:
-        return f"{metric} {value:.3g} is outside [0, 1], which its definition bounds (should not happen: please report it)"
+        return (
+            f"{metric} {value:.3g} is outside [0, 1], which its definition bounds "
+            "(should not happen: please report it)"
+        )
     return None
 
 
