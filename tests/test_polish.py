@@ -56,3 +56,41 @@ def test_each_step_is_timed_from_its_own_start(tmp_path, monkeypatch) -> None:
     run_tasks(BuildArea(str(tmp_path)), jobs, SerialExecutor())
     times = {line.split(":")[0]: float(re.search(r"([\d.]+) s\)$", line)[1]) for line in lines}
     assert times["step one"] >= 0.8 and times["step two"] < 0.3, lines
+
+
+def test_euler_panel_is_unwrapped_in_degrees() -> None:
+    import numpy as np
+
+    from dancedata.viz.plot_data import unwrap_degrees
+
+    raw = np.array([[170.0, 0.0], [179.0, 1.0], [-179.0, np.nan], [-170.0, 3.0], [175.0, 4.0]])
+    got = unwrap_degrees(raw)
+    np.testing.assert_allclose(got[:, 0], [170.0, 179.0, 181.0, 190.0, 175.0])
+    assert np.isnan(got[2, 1]) and got[3, 1] == 3.0
+    np.testing.assert_allclose(np.mod(got[:, 0] - raw[:, 0], 360.0), 0.0, atol=1e-9)
+
+
+@pytest.mark.real_data
+def test_plot_joint_angles_have_no_wrap_spikes(real_data, tmp_path) -> None:
+    """A real clip (freya_edit.bvh) whose joints turn through ±180°: the plotted curves never
+    jump by more than 180° between frames, and each is the stored angle plus whole turns."""
+    import numpy as np
+
+    import dancedata
+    from dancedata.viz.plot_data import gather
+    from tests.helpers import run_cli
+
+    store = tmp_path / "s"
+    run_cli("ingest", "bvh", str(real_data / "bvh" / "freya_edit.bvh"), "--store", str(store),
+            "-q")  # fmt: skip
+    ds = dancedata.open_store(store)
+    euler = np.degrees(ds.motion("freya_edit", "euler").astype(np.float64))
+    names = ds.group_attrs("motion")["skeleton"]["joints"]
+    jumps = np.abs(np.diff(euler, axis=0)).max(axis=(0, 2))
+    wrapping = [names[j] for j in np.flatnonzero(jumps > 300)]
+    assert wrapping, "the clip should have a joint turning through ±180°"
+    data = gather(store, "freya_edit", joints=tuple(wrapping[:2]))
+    for name, curve in data.joint_angles_deg.items():
+        assert np.nanmax(np.abs(np.diff(curve, axis=0))) < 180, name
+        stored = euler[:, names.index(name)]
+        np.testing.assert_allclose(np.mod(curve - stored + 180, 360) - 180, 0, atol=1e-6)

@@ -175,9 +175,22 @@ def _joint_angles(
         spread = np.nanstd(euler, axis=(0, 2)) if euler.shape[0] else np.zeros(euler.shape[1])
         chosen = sorted(np.argsort(-np.nan_to_num(spread))[:n_auto].tolist())
     attrs = dict(store.zarr("motion/euler").attrs)
-    return {names[j]: np.degrees(euler[:, j, :].astype(np.float64)) for j in chosen}, _euler_order(
-        attrs
-    )
+    angles = {
+        names[j]: unwrap_degrees(np.degrees(euler[:, j, :].astype(np.float64))) for j in chosen
+    }
+    return angles, _euler_order(attrs)
+
+
+def unwrap_degrees(angles: np.ndarray) -> np.ndarray:
+    """(F, K) angles in degrees made continuous along frames (``np.unwrap``, period 360): a
+    joint turning through ±180° is drawn as one curve instead of full-height spikes. NaN frames
+    stay NaN and the finite frames either side of them are unwrapped as neighbours."""
+    out = np.array(angles, dtype=np.float64, copy=True)
+    for k in range(out.shape[1]):
+        finite = np.isfinite(out[:, k])
+        if finite.sum() > 1:
+            out[finite, k] = np.unwrap(out[finite, k], period=360.0)
+    return out
 
 
 # Position arrays that interior joint angles are taken from when there is no motion/euler,
