@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import sys
+from functools import partial
 from typing import Annotated, Any
 
 import typer
@@ -39,8 +40,26 @@ from dancedata._version import __version__
 INTERRUPTED = "interrupted; run again to resume"
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 
+# ``dancedata --help`` lists commands in the order a run uses them (then any others, as
+# registered), not alphabetically or by import order.
+PIPELINE_ORDER = (
+    "synth", "ingest", "featurize", "segment", "keyframes", "validate", "info", "versions",
+    "checkout", "unlock", "export", "plot", "render", "report", "experiment", "evaluate", "cache",
+)  # fmt: skip
+
+
+class PipelineOrderGroup(typer.core.TyperGroup):
+    """The root command group, listing its commands in :data:`PIPELINE_ORDER`."""
+
+    def list_commands(self, ctx: Any) -> list[str]:
+        names = list(self.commands)
+        rank = {name: i for i, name in enumerate(PIPELINE_ORDER)}
+        return sorted(names, key=lambda n: (rank.get(n, len(rank)), names.index(n)))
+
+
 app = typer.Typer(
     name="dancedata",
+    cls=PipelineOrderGroup,
     help=(
         "Turn raw music-and-dance data (AIST++, BVH, video poses) into versioned, "
         "analysis-ready Zarr + Parquet stores.\n\n"
@@ -95,6 +114,10 @@ def _plain_help(command: Any, path: str) -> None:
 
     command.rich_markup_mode = None
     for param in command.params:
+        # The usage line names arguments as the help texts do (STORE SEQ_ID OUT, [PATHS]...):
+        # typer writes required ones as {STORE}, which reads as a placeholder to fill in.
+        if getattr(param, "param_type_name", "") == "argument":
+            param.get_usage_pieces = partial(_usage_pieces, param)
         # A flag declared as --no-X (e.g. --no-music) gets no --no-no-X twin.
         if getattr(param, "is_bool_flag", False) and any(
             opt.startswith("--no-no-") for opt in param.secondary_opts
@@ -108,6 +131,12 @@ def _plain_help(command: Any, path: str) -> None:
         command.epilog = f"\b\nExample:\n  {example}"
     for name, sub in getattr(command, "commands", {}).items():
         _plain_help(sub, f"{path} {name}".strip())
+
+
+def _usage_pieces(param: Any, ctx: Any) -> list[str]:
+    name = param.metavar or (param.name or "").upper()
+    piece = name if param.required else f"[{name}]"
+    return [piece + ("..." if param.nargs != 1 and not name.endswith("...") else "")]
 
 
 def _first_sentence(text: str) -> str:

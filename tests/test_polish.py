@@ -94,3 +94,40 @@ def test_plot_joint_angles_have_no_wrap_spikes(real_data, tmp_path) -> None:
         assert np.nanmax(np.abs(np.diff(curve, axis=0))) < 180, name
         stored = euler[:, names.index(name)]
         np.testing.assert_allclose(np.mod(curve - stored + 180, 360) - 180, 0, atol=1e-6)
+
+
+def test_help_lists_commands_in_pipeline_order() -> None:
+    from tests.helpers import run_cli
+
+    text = run_cli("--help").stdout
+    listed = [line.split()[0] for line in text.split("Commands:")[1].splitlines() if
+              line.startswith("  ") and not line.startswith("   ")]  # fmt: skip
+    assert listed[:6] == ["synth", "ingest", "featurize", "segment", "keyframes", "validate"]
+    assert listed.index("plot") < listed.index("render") < listed.index("report")
+    assert listed != sorted(listed)
+
+
+def test_usage_lines_have_no_placeholders() -> None:
+    import click
+    from dancedata.cli.main import build_command
+
+    root = build_command()
+
+    def leaves(command, path):
+        subs = getattr(command, "commands", {})
+        if not subs:
+            yield path, command
+        for name, sub in subs.items():
+            yield from leaves(sub, [*path, name])
+
+    seen = 0
+    for path, command in leaves(root, ["dancedata"]):
+        ctx = click.Context(command, info_name=" ".join(path))
+        usage = command.get_usage(ctx)
+        assert "{" not in usage and "}" not in usage, usage
+        seen += 1
+    ctx = click.Context(root.commands["render"], info_name="dancedata render")
+    assert root.commands["render"].get_usage(ctx) == (
+        "Usage: dancedata render [OPTIONS] STORE SEQ_ID OUT"
+    )
+    assert seen > 20
