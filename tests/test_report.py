@@ -324,3 +324,40 @@ def test_report_renders_in_headless_chromium(store, page, tmp_path, record_prope
         f"(best of 2), screenshot command {screenshot_s:.1f} s"
     )
     assert load_ms < 5000
+
+
+PHONE_PROBE = (
+    '<!DOCTYPE html><html><body style="margin:0"><iframe id="f" src="{page}" width="375" '
+    'height="800" style="border:0"></iframe><script>'
+    "document.getElementById('f').addEventListener('load',()=>{{"
+    "const d=document.getElementById('f').contentDocument;"
+    "const c=[...d.querySelector('.cards').children];"
+    "const rows=new Set(c.map(e=>Math.round(e.getBoundingClientRect().top)));"
+    "document.body.setAttribute('data-card-rows',String(rows.size));"
+    "document.body.setAttribute('data-cards',String(c.length));"
+    "document.body.setAttribute('data-page-width',String(d.documentElement.scrollWidth))}});"
+    "</script></body></html>"
+)
+
+
+def test_report_at_phone_width_tiles_two_per_row(page, tmp_path):
+    """In a 375 px viewport (a phone; an iframe, as headless Chromium's window is at least
+    500 px wide) the count tiles sit two per row (they stacked one per row) and the page does
+    not scroll sideways."""
+    probe = tmp_path / "phone.html"
+    probe.write_text(PHONE_PROBE.format(page=page.as_uri()))
+    dom = _run_chromium("--allow-file-access-from-files", "--dump-dom", probe.as_uri()).stdout
+    found = {k: int(v) for k, v in re.findall(r'data-(card-rows|cards|page-width)="(\d+)"', dom)}
+    assert found.get("cards", 0) >= 6, (found, dom[-500:])
+    assert found["card-rows"] == -(-found["cards"] // 2), found
+    assert found["page-width"] <= 375, found
+
+
+def test_header_says_sequence_in_the_singular(tmp_path):
+    from dancedata.viz.report import build_report
+
+    raw, store = tmp_path / "raw", tmp_path / "s"
+    run_cli("synth", "aist", str(raw), "--sequences", "1", "--seed", "0", "-q")
+    run_cli("ingest", "aist", str(raw), "--store", str(store), "-q")
+    text = build_report(store, gallery=0)
+    assert "· 1 sequence</p>" in text and "1 sequences" not in text

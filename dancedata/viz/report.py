@@ -435,7 +435,7 @@ def build_report(
     return h.page(
         f"Dataset card: {Path(str(info['store'])).name or info['store']}",
         f"{info['store']} · version {info['version']} (latest {info['latest']}) · "
-        f"{info.get('sequences', 0)} sequences",
+        f"{info.get('sequences', 0)} sequence{'' if info.get('sequences', 0) == 1 else 's'}",
         sections,
     )
 

@@ -27,15 +27,22 @@ th,td{padding:3px 10px;border-bottom:1px solid #e3e7ee;text-align:left;vertical-
 th{background:#eef2f7;font-weight:600;white-space:nowrap}
 td.num{text-align:right;font-variant-numeric:tabular-nums}
 code,.mono{font-family:"DejaVu Sans Mono",Menlo,Consolas,monospace;font-size:12px}
-.cards{display:flex;flex-wrap:wrap;gap:12px}
-.card{background:#eef2f7;border-radius:8px;padding:8px 16px;min-width:120px}
+.cards{display:grid;grid-template-columns:repeat(auto-fill,minmax(120px,1fr));gap:12px}
+.card{background:#eef2f7;border-radius:8px;padding:8px 16px;min-width:0;overflow-wrap:anywhere}
 .card .v{font-size:22px;font-weight:700;color:#1d3557} .card .k{font-size:12px;color:#56657a}
 .grid{display:flex;flex-wrap:wrap;gap:24px} .grid>div{min-width:220px}
 .bad{color:#b00020;font-weight:600} .ok{color:#2a7a2a} .muted{color:#6b7785}
-.gallery{display:grid;grid-template-columns:repeat(auto-fill,minmax(560px,1fr));gap:12px}
+.gallery{display:grid;grid-template-columns:repeat(auto-fill,minmax(min(560px,100%),1fr));gap:12px}
 figure{margin:8px 0} figure img{max-width:100%;border:1px solid #e3e7ee}
 figcaption{font-size:12px;color:#56657a}
 details summary{cursor:pointer;color:#1d3557}
+section{overflow-x:auto}
+@media (max-width:600px){
+ header{padding:12px 14px} header h1{font-size:20px} main{padding:4px 8px 24px}
+ section{padding:8px 10px 12px;margin:10px 0}
+ .cards{grid-template-columns:repeat(2,minmax(0,1fr));gap:8px}
+ .card{padding:6px 10px} .card .v{font-size:18px} .grid>div{min-width:0}
+}
 """
 
 BAR_COLOUR = "#457b9d"
