@@ -18,6 +18,9 @@ STEMS_PINS ?= torch==2.14.1 torchaudio==2.11.0 openunmix==1.3.0
 TORCH_INDEX ?=
 # The 'viz' extra (matplotlib, PyAV) for plot/report/render: `make pipeline` and `make test`.
 VIZ_STAMP := $(VENV)/.installed-viz
+# setuptools warns on every editable build ("Editable installation ... folders with the same
+# name as your package"): shown by the first install, silenced for the extras' re-installs.
+QUIET_EDITABLE := PYTHONWARNINGS="ignore:Editable installation"
 # Headless Chromium (Debian package) renders the report page in tests and for README stills.
 CHROMIUM := /usr/bin/chromium
 DEMO_RAW := data/raw/aist-demo
@@ -42,20 +45,20 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 $(DEV_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet -e '.[dev]'
+	$(QUIET_EDITABLE) $(PY) -m pip install --quiet -e '.[dev]'
 	touch $(DEV_STAMP)
 
 install-dev: $(DEV_STAMP)
 
 $(STEMS_STAMP): $(DEV_STAMP)
-	$(PY) -m pip install --quiet -e '.[dev,stems]' $(STEMS_PINS) \
+	$(QUIET_EDITABLE) $(PY) -m pip install --quiet -e '.[dev,stems]' $(STEMS_PINS) \
 		$(if $(TORCH_INDEX),--extra-index-url $(TORCH_INDEX))
 	touch $(STEMS_STAMP)
 
 install-stems: $(STEMS_STAMP)
 
 $(VIZ_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet -e '.[viz]'
+	$(QUIET_EDITABLE) $(PY) -m pip install --quiet -e '.[viz]'
 	touch $(VIZ_STAMP)
 
 install-viz: $(VIZ_STAMP)
