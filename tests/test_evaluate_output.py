@@ -35,6 +35,7 @@ def test_headline_counts_metrics_and_notes_explain_values() -> None:
         ],
         "skipped_metrics": {"fpd": "no rotations"},
         "unscored_sequences": [],
+        "config": {"params": {}},
     }
     text = EvaluateSummary(record, Path("out")).message("evaluate").splitlines()
     assert text[0] == (
