@@ -3,6 +3,7 @@ what they are, every ratio-like value outside [0, 1] explained, notes citing shi
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from dancedata.pipeline.evaluate import EvaluateSummary
@@ -72,9 +73,14 @@ def test_cli_headline_on_a_store_scored_against_itself(tmp_path: Path) -> None:
     proc = run_cli("evaluate", str(store), "--generated", str(store), "--split", "test",
                    "--out", str(tmp_path / "ev"), "-q")  # fmt: skip
     lines = proc.stdout.splitlines()
+    record = json.loads((tmp_path / "ev" / "results.json").read_text())
+    scored, total = len(record["results"]), len(record["results"]) + len(record["skipped_metrics"])
+    assert total == 16
     assert lines[0] == (
-        f"evaluate: v2 crossmodal:test, 3 of 16 metrics scored (on 6 of 6 sequences); "
-        f"record in {tmp_path / 'ev'}"
+        f"evaluate: v2 crossmodal:test, {scored} of {total} metrics scored (on 6 of 6 "
+        f"sequences); record in {tmp_path / 'ev'}"
     )
     assert lines[1].split() == ["metric", "value", "sequences", "n_items", "frames"]
-    assert [line.split()[0] for line in lines[2:5]] == ["mse", "fpd", "fmd"]
+    assert [line.split()[0] for line in lines[2 : 2 + scored]] == [
+        r["metric"] for r in record["results"]
+    ]
