@@ -68,7 +68,9 @@ def test_run_id_renders_each_table_with_seed_values(results: Path) -> None:
     rows = [line for line in out.splitlines() if line.startswith("| KF_")]
     assert len(rows) == 8  # 4 rows each, the class M row footnoted, not dropped
     motion = [r for r in rows if "D}_{motion}" in r]
-    assert len(motion) == 2 and all("—[2] (" in r for r in motion)
+    assert len(motion) == 2 and all("| —[" in r for r in motion)
+    mark = motion[0].split("| —[", 1)[1].split("]", 1)[0]
+    assert f"- [{mark}] class M (trained model)" in out  # footnoted, with its reason
     # every ours (seed) cell has its seed; MSE cells have a Δ
     for row in rows:
         cells = [c.strip() for c in row.strip("|").split("|")][1:4]
