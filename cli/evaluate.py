@@ -122,13 +122,14 @@ def evaluate_command(
             "whole sequences). Options given explicitly still win."
         ),
     ] = None,
-    fid_root_relative: Annotated[
-        bool,
+    fid_origin: Annotated[
+        str,
         typer.Option(
-            help="Subtract each sequence's first-frame root from its joints before the FID "
-            "features (Bailando); off in mint."
+            help="Origin of the positions before the FID / diversity features: world (mint, "
+            "AIST++ API) or first_frame_root (Bailando: each unit minus its first-frame root). "
+            "Changes FID_k, not FID_g (docs/METRICS.md)."
         ),
-    ] = False,
+    ] = "world",
     skip_frames: Annotated[
         int, typer.Option(min=0, help="Frames to drop at the start of both (mint: 120).")
     ] = 0,
@@ -192,7 +193,7 @@ def evaluate_command(
         fpd_aggregate=fpd_aggregate,
         skip_frames=skip_frames,
         max_frames=max_frames,
-        fid_root_relative=fid_root_relative,
+        fid_origin=fid_origin,
         feature_max_frames=feature_max_frames,
     )
     if convention is not None:

@@ -100,7 +100,7 @@ def test_bailando_convention_reproduces_bailandos_pipeline(
     params = record["config"]["params"]
     assert params["convention"] == "bailando"
     assert params["feature_max_frames"] == CUT  # given explicitly: it wins over the preset's 1200
-    assert params["fid_reference"] == "all_gt" and params["fid_root_relative"] is True
+    assert params["fid_reference"] == "all_gt" and params["fid_origin"] == "first_frame_root"
     assert params["fid_eps"] == 1e-5 and params["max_frames"] is None
     results = {r["metric"]: r for r in record["results"]}
     want = _bailando_reference(store, generated)

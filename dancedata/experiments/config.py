@@ -21,7 +21,7 @@ File layout (every table and key optional except ``rows`` or ``[matrix]``)::
     [inbetween] bezier_group, bezier_param, bezier_trans, bezier_solver
     [metrics]  names = ["mse", "fid_g", "fid_k"] ; mse_space ; mse_wrap ; mse_reduce ;
                fid_unit ; fid_reference ; kinetic_mode ; geometric_frame_time ; normalize ;
-               drop_constant_ref_columns ; smpl_model
+               drop_constant_ref_columns ; fid_origin ; smpl_model
     [generated] "even+transformer_motion@9" = "path/to/outputs"   # class M rows
 
 Unknown keys are refused (a typo would otherwise silently run the default).
@@ -87,6 +87,7 @@ DEFAULTS: dict[str, Any] = {
         "geometric_frame_time": 1.0 / 120.0,
         "normalize": True,
         "drop_constant_ref_columns": False,
+        "fid_origin": "world",
         "smpl_model": "$DANCEDATA_SMPL_MODEL",
     },
     "generated": {},
@@ -101,6 +102,7 @@ _CHOICES = {
     ("metrics", "fid_unit"): ("sequence", "measure"),
     ("metrics", "fid_reference"): ("paired_gt",),
     ("metrics", "kinetic_mode"): ("parity", "corrected"),
+    ("metrics", "fid_origin"): ("world", "first_frame_root"),
 }
 
 # Every key's type and range (checked before any value is used; bool is never taken as a

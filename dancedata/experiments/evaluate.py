@@ -103,7 +103,7 @@ class EvaluateParams:
     skip_frames: int = 0
     max_frames: int | None = None
     length: str = "common_min"
-    fid_root_relative: bool = False
+    fid_origin: str = "world"
     # FID / diversity on each sequence's first N compared frames only (Bailando: 1200), while
     # the beat scores and MSE use every compared frame; None: no extra cut.
     feature_max_frames: int | None = None
@@ -117,6 +117,7 @@ class EvaluateParams:
             "fid_unit": ("sequence", "measure"),
             "fid_reference": ("paired_gt", "train_gt", "all_gt"),
             "kinetic_mode": ("parity", "corrected"),
+            "fid_origin": ("world", "first_frame_root"),
             "beat_detector": ("mint", "bailando"),
             "fpd_parity": ("spec", "transflower"),
             "fpd_aggregate": ("per_piece_mean", "pooled"),
@@ -254,7 +255,7 @@ def _feature_metrics(
             fps=p.fps,
             kinetic_mode=p.kinetic_mode,  # type: ignore[arg-type]
             geometric_frame_time_s=p.geometric_frame_time_s,
-            root_relative_first_frame=p.fid_root_relative,
+            origin=p.fid_origin,  # type: ignore[arg-type]
             normalize=p.normalize,
             drop_constant_ref_columns=p.drop_constant_ref_columns,
             eps=p.fid_eps,
@@ -273,7 +274,7 @@ def _feature_metrics(
             "fps": p.fps,
             "kinetic_mode": p.kinetic_mode,
             "geometric_frame_time_s": p.geometric_frame_time_s,
-            "root_relative_first_frame": p.fid_root_relative,
+            "origin": p.fid_origin,
         }
         f_gen = motion_feature_matrix(gen, kind, **feats)  # type: ignore[arg-type]
         f_gt = motion_feature_matrix(gt, kind, **feats)  # type: ignore[arg-type]
@@ -281,7 +282,12 @@ def _feature_metrics(
             keep = f_gt.std(axis=0) > 0
             f_gen, f_gt = f_gen[:, keep], f_gt[:, keep]
         ref = f_gt if p.normalize else None
-        conv = {"features": kind, **unit, "drop_constant_ref_columns": p.drop_constant_ref_columns}
+        conv = {
+            "features": kind,
+            **unit,
+            "drop_constant_ref_columns": p.drop_constant_ref_columns,
+            "origin": p.fid_origin,
+        }
         gt_frames = sum(len(u) for u in gt)
         for name, values, count in (
             (f"div_{suffix}", f_gen, frames),

@@ -48,7 +48,7 @@ CONVENTIONS: dict[str, Convention] = {
             "skip_frames": 0,
             "fid_unit": "sequence",
             "fid_reference": "all_gt",
-            "fid_root_relative": True,
+            "fid_origin": "first_frame_root",
             "fid_eps": 1e-5,
             "normalize": True,
             "drop_constant_ref_columns": False,

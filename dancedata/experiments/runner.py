@@ -186,6 +186,7 @@ def _score_fid(ev: Evaluated, data: SplitData, config: ExperimentConfig, skeleto
             geometric_frame_time_s=float(m["geometric_frame_time"]),
             normalize=m["normalize"],
             drop_constant_ref_columns=m["drop_constant_ref_columns"],
+            origin=m["fid_origin"],
         )
         record = result.as_dict()
         record["convention"].update(unit=m["fid_unit"], reference=m["fid_reference"],

@@ -1,4 +1,4 @@
-"""FID_k and FID_g (EXPERIMENTS.md §4.2): Fréchet distances on the AIST++ kinetic (72-d) and
+"""FID_k and FID_g (docs/METRICS.md, "FID"): Fréchet distances on the AIST++ kinetic (72-d) and
 geometric (32-d) features of SMPL-24 joint positions (metres, y up).
 
 The features are :func:`dancedata.compute.motion_features.kinetic_features` and
@@ -6,6 +6,13 @@ The features are :func:`dancedata.compute.motion_features.kinetic_features` and
 (``mode="parity"`` keeps its acceleration precedence slip; ``frame_time_s`` = 1/120 s its
 hard-coded velocity step). One feature vector per unit (sequence or measure: the caller
 chooses the unit and records it).
+
+The origin of the positions is a convention (:data:`ORIGINS`), because the reference kinetic
+features are not translation invariant: with the AIST++ API's precedence slip the energy column
+of each joint is about 3540 × its distance from the world origin. ``"world"`` (mint, the AIST++
+API; default) keeps the positions as given; ``"first_frame_root"`` (Bailando
+``calc_and_save_feats``) subtracts the unit's first-frame root joint from every joint and frame.
+The geometric features are translation invariant, so FID_g is the same under both.
 """
 
 from __future__ import annotations
@@ -19,10 +26,23 @@ from dancedata.compute.motion_features import geometric_features, kinetic_featur
 from dancedata.experiments.metrics.frechet import frechet_distance
 from dancedata.experiments.metrics.result import MetricResult
 
-__all__ = ["FeatureKind", "fid", "motion_feature_matrix"]
+__all__ = ["ORIGINS", "FeatureKind", "Origin", "fid", "motion_feature_matrix", "with_origin"]
 
 FeatureKind = Literal["kinetic", "geometric"]
+Origin = Literal["world", "first_frame_root"]
+ORIGINS: tuple[str, ...] = ("world", "first_frame_root")
 _NAMES = {"kinetic": "fid_k", "geometric": "fid_g"}
+
+
+def with_origin(positions: np.ndarray, origin: Origin) -> np.ndarray:
+    """(F, J, 3) positions placed by the origin convention: unchanged (``"world"``) or minus
+    the first frame's joint 0 (``"first_frame_root"``)."""
+    p = np.asarray(positions, dtype=np.float64)
+    if origin == "world":
+        return p
+    if origin == "first_frame_root":
+        return p - p[:1, :1, :]
+    raise ValueError(f"origin must be one of {', '.join(ORIGINS)}, got {origin!r}")
 
 
 def motion_feature_matrix(
@@ -32,18 +52,13 @@ def motion_feature_matrix(
     fps: float = 60.0,
     kinetic_mode: Literal["parity", "corrected"] = "parity",
     geometric_frame_time_s: float = 1.0 / 120.0,
-    root_relative_first_frame: bool = False,
+    origin: Origin = "world",
 ) -> np.ndarray:
-    """(n_units, 72) kinetic or (n_units, 32) geometric features, one row per (F, 24, 3) unit.
-
-    ``root_relative_first_frame`` subtracts the first frame's root from every joint of the unit
-    (Bailando ``calc_and_save_feats``; off in mint).
-    """
+    """(n_units, 72) kinetic or (n_units, 32) geometric features, one row per (F, 24, 3) unit,
+    each unit placed by ``origin`` first (:func:`with_origin`)."""
     rows = []
     for p in positions:
-        p = np.asarray(p, dtype=np.float64)
-        if root_relative_first_frame:
-            p = p - p[:1, :1, :]
+        p = with_origin(p, origin)
         if kind == "kinetic":
             rows.append(kinetic_features(p, fps, mode=kinetic_mode, up_axis="y"))
         elif kind == "geometric":
@@ -62,7 +77,7 @@ def fid(
     fps: float = 60.0,
     kinetic_mode: Literal["parity", "corrected"] = "parity",
     geometric_frame_time_s: float = 1.0 / 120.0,
-    root_relative_first_frame: bool = False,
+    origin: Origin = "world",
     normalize: bool = True,
     drop_constant_ref_columns: bool = False,
     eps: float = 1e-6,
@@ -74,7 +89,7 @@ def fid(
         "fps": fps,
         "kinetic_mode": kinetic_mode,
         "geometric_frame_time_s": geometric_frame_time_s,
-        "root_relative_first_frame": root_relative_first_frame,
+        "origin": origin,
     }
     evaluated = motion_feature_matrix(evaluated_positions, kind, **feats)
     reference = motion_feature_matrix(reference_positions, kind, **feats)
@@ -92,7 +107,7 @@ def fid(
         convention.update(fps=fps, kinetic_mode=kinetic_mode)
     else:
         convention.update(geometric_frame_time_s=geometric_frame_time_s)
-    convention["root_relative_first_frame"] = root_relative_first_frame
+    convention["origin"] = origin
     return MetricResult(
         result.name, result.value, convention, result.n_units, result.n_frames, result.details
     )
