@@ -130,6 +130,21 @@ def evaluate_command(
             "Changes FID_k, not FID_g (docs/METRICS.md)."
         ),
     ] = "world",
+    pfc_fps: Annotated[
+        float,
+        typer.Option(
+            help="Frame rate PFC is computed at (EDGE: 30; every fps/pfc_fps-th frame). PFC "
+            "uses per-frame foot displacements, so it changes with this rate."
+        ),
+    ] = 30.0,
+    pfc_clip_frames: Annotated[
+        int | None,
+        typer.Option(
+            min=3,
+            help="PFC clip length in frames at --pfc-fps (EDGE's 5-s clips: 150); default: "
+            "each scored sequence is one clip.",
+        ),
+    ] = None,
     skip_frames: Annotated[
         int, typer.Option(min=0, help="Frames to drop at the start of both (mint: 120).")
     ] = 0,
@@ -159,11 +174,12 @@ def evaluate_command(
     as_json: Json = False,
 ) -> None:
     """Score generated motion against the store's ground truth on a split: MSE, FID_k, FID_g,
-    diversity, the beat scores (mint, Bailando, ChoreoGraph MSD, coverage / hit / accuracy) and
-    FPD / FMD, each with its convention. Prints a table and writes results.json and
-    results.parquet. Sequences that cannot be scored are listed with their reason (stderr and
-    the record). Exit 0 when the record is written; 1 on a bad store, split or folder, when no
-    sequence can be scored, or with --strict when any sequence was not scored.
+    diversity, the beat scores (mint, Bailando, ChoreoGraph MSD, coverage / hit / accuracy),
+    FPD / FMD and EDGE's PFC, each with its convention (docs/METRICS.md). Prints a table and
+    writes results.json and results.parquet. Sequences that cannot be scored are listed with
+    their reason (stderr and the record). Exit 0 when the record is written; 1 on a bad store,
+    split or folder, when no sequence can be scored, or with --strict when any sequence was not
+    scored.
 
     Example (one Bailando table row): dancedata evaluate data/stores/aist --generated out/
     --convention bailando"""
@@ -195,6 +211,8 @@ def evaluate_command(
         max_frames=max_frames,
         fid_origin=fid_origin,
         feature_max_frames=feature_max_frames,
+        pfc_fps=pfc_fps,
+        pfc_clip_frames=pfc_clip_frames,
     )
     if convention is not None:
         preset = convention_named(convention)

@@ -21,7 +21,8 @@ File layout (every table and key optional except ``rows`` or ``[matrix]``)::
     [inbetween] bezier_group, bezier_param, bezier_trans, bezier_solver
     [metrics]  names = ["mse", "fid_g", "fid_k"] ; mse_space ; mse_wrap ; mse_reduce ;
                fid_unit ; fid_reference ; kinetic_mode ; geometric_frame_time ; normalize ;
-               drop_constant_ref_columns ; fid_origin ; smpl_model
+               drop_constant_ref_columns ; fid_origin ; pfc_fps ; pfc_clip_frames (0: whole
+               sequences) ; smpl_model
     [generated] "even+transformer_motion@9" = "path/to/outputs"   # class M rows
 
 Unknown keys are refused (a typo would otherwise silently run the default).
@@ -42,7 +43,7 @@ from dancedata.experiments.keyframes import KeyframeParams, canonical_strategy
 # In-betweeners of spec §3 by row-key name; transformer:* rows need a trained model (class M).
 INBETWEENERS: tuple[str, ...] = ("linear_slerp", "bezier_oracle", "bezier_train_mean")
 TRANSFORMER_PREFIX = "transformer_"
-METRICS: tuple[str, ...] = ("mse", "fid_g", "fid_k")
+METRICS: tuple[str, ...] = ("mse", "fid_g", "fid_k", "pfc")
 GENRES_9: tuple[str, ...] = ("gBR", "gHO", "gJS", "gKR", "gLH", "gLO", "gMH", "gPO", "gWA")
 
 DEFAULTS: dict[str, Any] = {
@@ -88,6 +89,8 @@ DEFAULTS: dict[str, Any] = {
         "normalize": True,
         "drop_constant_ref_columns": False,
         "fid_origin": "world",
+        "pfc_fps": 30.0,
+        "pfc_clip_frames": 0,
         "smpl_model": "$DANCEDATA_SMPL_MODEL",
     },
     "generated": {},
@@ -400,6 +403,11 @@ def build_config(raw: dict[str, Any], source: str = "<config>",
     if bad:
         raise InputError(f"unknown metric(s) {bad}; the runner computes {list(METRICS)}", source)
     data["metrics"]["names"] = names
+    pfc_fps, clip = data["metrics"]["pfc_fps"], data["metrics"]["pfc_clip_frames"]
+    if not isinstance(pfc_fps, int | float) or pfc_fps <= 0 or abs(60.0 / pfc_fps % 1) > 1e-9:
+        raise InputError(f"metrics.pfc_fps = {pfc_fps!r} must divide 60 (EDGE: 30)", source)
+    if not isinstance(clip, int) or isinstance(clip, bool) or clip < 0 or 0 < clip < 3:
+        raise InputError(f"metrics.pfc_clip_frames = {clip!r}: 0 (whole) or >= 3 frames", source)
     for (table, key), known in _CHOICES.items():
         if data[table][key] not in known:
             raise InputError(

@@ -21,6 +21,9 @@ Metrics and what they need (both sides):
   beats; per-sequence values averaged over sequences.
 * ``fpd``, ``fmd``: axis-angle poses; per music piece, then the mean over pieces
   (``fpd_aggregate = "per_piece_mean"``) or one pooled distance.
+* ``pfc``, ``pfc_gt``: EDGE's Physical Foot Contact score of the generated / ground-truth
+  SMPL-24 positions, taken every ``fps / pfc_fps``-th frame (EDGE: 30 fps), whole sequences or
+  clips of ``pfc_clip_frames`` frames at that rate; mean over clips × 10⁴.
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ from dancedata.experiments.metrics import (
     mse,
 )
 from dancedata.experiments.metrics.beats import decimate_beats
+from dancedata.experiments.metrics.pfc import pfc
 
 __all__ = ["METRICS", "EvalSequence", "EvaluateParams", "Evaluation", "evaluate_sequences"]
 
@@ -70,6 +74,8 @@ METRICS = (
     "beat_accuracy",
     "fpd",
     "fmd",
+    "pfc",
+    "pfc_gt",
 )
 _FEATURE_METRICS = ("fid_k", "fid_g", "div_k", "div_g", "div_k_gt", "div_g_gt")
 _BEAT_METRICS = METRICS[7:14]
@@ -109,6 +115,8 @@ class EvaluateParams:
     feature_max_frames: int | None = None
     # The named preset the other fields were set from (``evaluate --convention``), or None.
     convention: str | None = None
+    pfc_fps: float = 30.0
+    pfc_clip_frames: int | None = None
 
     def __post_init__(self) -> None:
         allowed = {
@@ -142,6 +150,11 @@ class EvaluateParams:
         step = self.fps / self.msd_fps if self.msd_fps > 0 else 0.0
         if step < 1 or abs(step - round(step)) > 1e-9:
             raise InputError(f"msd_fps {self.msd_fps} must divide fps {self.fps}")
+        step = self.fps / self.pfc_fps if self.pfc_fps > 0 else 0.0
+        if step < 1 or abs(step - round(step)) > 1e-9:
+            raise InputError(f"pfc_fps {self.pfc_fps} must divide fps {self.fps}")
+        if self.pfc_clip_frames is not None and self.pfc_clip_frames < 3:
+            raise InputError(f"pfc_clip_frames must be at least 3, got {self.pfc_clip_frames}")
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -436,6 +449,25 @@ def _fpd_metrics(seqs: list[EvalSequence], p: EvaluateParams, out: list[MetricRe
         )
 
 
+def _pfc_metrics(
+    seqs: list[EvalSequence], p: EvaluateParams, out: list[MetricResult], side: str
+) -> None:
+    """PFC of one side ("gen" or "gt") at ``pfc_fps``: positions are y up here, which gives
+    EDGE's z-up value (a rotation keeps the horizontal plane and the up clamp)."""
+    step = round(p.fps / p.pfc_fps)
+    name = "pfc" if side == "gen" else "pfc_gt"
+    positions = [getattr(s, f"{side}_positions")[::step] for s in seqs]
+    result = pfc(positions, fps=p.pfc_fps, up_axis="y", clip_frames=p.pfc_clip_frames, name=name)
+    if not result.n_units:
+        raise ValueError("no clip with root acceleration (PFC undefined everywhere)")
+    convention = {**result.convention, "source_fps": p.fps, "frame_step": step}
+    out.append(
+        MetricResult(
+            name, result.value, convention, result.n_units, result.n_frames, result.details
+        )
+    )
+
+
 def _guarded(
     names: Sequence[str], skipped: dict[str, str], out: list[MetricResult], run: Callable[[], None]
 ) -> None:
@@ -560,6 +592,21 @@ def evaluate_sequences(
         _guarded(["fpd", "fmd"], skipped, out, lambda: _fpd_metrics(poses, params, out))
     else:
         skipped["fpd"] = skipped["fmd"] = "no sequence with rotations on both sides"
+
+    for side, name in (("gen", "pfc"), ("gt", "pfc_gt")):
+        usable = _needs(
+            seqs,
+            [name],
+            "positions",
+            lambda s, side=side: getattr(s, f"{side}_positions") is not None,
+            unscored,
+        )
+        if usable:
+            _guarded(
+                [name], skipped, out, lambda u=usable, side=side: _pfc_metrics(u, params, out, side)
+            )
+        else:
+            skipped[name] = "no sequence with SMPL-24 joint positions"
 
     out.sort(key=lambda r: METRICS.index(r.name))
     results = [_with_unscored(r, params) for r in out]

@@ -6,6 +6,9 @@ selects keyframes in every complete measure of the eval split, reconstructs the 
 
 * ``mse`` — :func:`dancedata.experiments.metrics.mse` over the measures (space, wrap, reduce
   from the config);
+* ``pfc`` — :func:`dancedata.experiments.metrics.pfc.pfc` (EDGE's Physical Foot Contact score)
+  of the reconstruction's SMPL-24 positions, one sequence (or ``pfc_clip_frames`` clip) per
+  unit, every 60 / ``pfc_fps``-th frame; positions as for FID.
 * ``fid_k`` / ``fid_g`` — :func:`dancedata.experiments.metrics.fid` on SMPL-24 joint positions
   of the reconstruction vs the ground truth of the same frames (``fid_reference =
   paired_gt``), one feature vector per sequence or per measure (``fid_unit``). Positions are
@@ -196,6 +199,24 @@ def _score_fid(ev: Evaluated, data: SplitData, config: ExperimentConfig, skeleto
     return out
 
 
+def _score_pfc(ev: Evaluated, data: SplitData, config: ExperimentConfig, model: Any
+               ) -> dict[str, Any]:  # fmt: skip
+    from dancedata.compute.smpl_joints import smpl_joint_positions
+    from dancedata.experiments.metrics.pfc import pfc
+
+    m = config.data["metrics"]
+    rec = ev.reconstruction
+    assert rec is not None
+    step = round(FPS / float(m["pfc_fps"]))
+    fake = smpl_joint_positions(model, rec.axis_angle(), rec.trans)
+    units = [u[::step] for u in _split_units(fake, _fid_units(ev, data, "sequence"))]
+    clip = int(m["pfc_clip_frames"]) or None
+    record = pfc(units, fps=float(m["pfc_fps"]), up_axis="y", clip_frames=clip).as_dict()
+    record["convention"].update(source_fps=FPS, frame_step=step, unit="sequence",
+                                positions="SMPL-24 FK (metres, y up)")  # fmt: skip
+    return record
+
+
 def _smpl_model(config: ExperimentConfig, override: str | Path | None) -> tuple[Any, str | None]:
     """(the rest skeleton of the FID positions, None): the model file of ``--smpl-model`` or
     ``metrics.smpl_model`` when given, else the built-in ``edge_smpl_offsets``."""
@@ -236,7 +257,7 @@ def run_experiment(
     reader = VersionReader(store, loader.version)
     params = config.keyframe_params()
     metrics = config.metrics
-    wants_fid = any(m in ("fid_g", "fid_k") for m in metrics)
+    wants_fid = any(m in ("fid_g", "fid_k", "pfc") for m in metrics)  # SMPL-24 positions
     split = config.split
     data = load_split(reader, split["scheme"], split["eval"], split["exclude_genres"],
                       need_axis_angle=wants_fid)  # fmt: skip
@@ -292,6 +313,10 @@ def run_experiment(
                     out.skipped.extend(Skip(row.key, n, k, why) for k in fid_kinds)
                 else:
                     scored.update(_score_fid(ev, data, config, model, fid_kinds))
+            if "pfc" in metrics and fid_reason:
+                out.skipped.append(Skip(row.key, n, "pfc", fid_reason))
+            elif "pfc" in metrics:
+                scored["pfc"] = _score_pfc(ev, data, config, model)
             for result in scored.values():
                 out.rows.append(_result_row(row, n, result, config, data, params, stem_backend))
             timings[f"{row.key}@{n}"] = round(time.perf_counter() - t0, 3)
