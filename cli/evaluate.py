@@ -87,6 +87,14 @@ def evaluate_command(
         float, typer.Option(help="ε added to covariances when sqrtm is not finite.")
     ] = 1e-6,
     bas_sigma: Annotated[float, typer.Option(help="σ (frames) of bas_mint / bas_bailando.")] = 3.0,
+    bas_beats: Annotated[
+        str,
+        typer.Option(
+            help="Music beats bas_mint matches: motion_span (beats inside the compared frames) "
+            "or whole_track_mint (also the track's beats after the last motion frame, as mint "
+            "scores generated motion)."
+        ),
+    ] = "motion_span",
     beat_tol: Annotated[
         int, typer.Option(help="Beat coverage / hit / accuracy tolerance (frames).")
     ] = 12,
@@ -202,6 +210,7 @@ def evaluate_command(
         drop_constant_ref_columns=drop_constant_ref_columns,
         fid_eps=fid_eps,
         bas_sigma=bas_sigma,
+        bas_beats=bas_beats,
         beat_tol=beat_tol,
         beat_detector=beat_detector,
         msd_fps=msd_fps,

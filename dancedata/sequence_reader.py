@@ -242,6 +242,15 @@ class SequenceReader:
         start = self.audio_start(seq_id)
         return self.whole_array(f"audio/{name}")[start : start + n]
 
+    def audio_to_track_end(self, seq_id: str, name: str) -> np.ndarray:
+        """``audio/<name>`` from the row that meets the sequence's first motion frame to the end
+        of its track: :meth:`audio` plus the track's frames past the last motion frame (mint
+        scores generated motion against the whole track's beats; docs/METRICS.md, bas_mint)."""
+        if self.audio_frames(seq_id) == 0:
+            raise StoreError(self.no_music_reason(seq_id), self.path)
+        track = self._music_rows[self.sequence(seq_id)["music_id"]]
+        return self.whole_array(f"audio/{name}")[self.audio_start(seq_id) : track["frame_stop"]]
+
     def audio_start(self, seq_id: str) -> int:
         """The global row of ``audio/*`` arrays that meets the sequence's first motion frame:
         its track's first frame plus its ``audio_offset`` (0 when the sequence has no audio)."""

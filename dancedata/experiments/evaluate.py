@@ -116,6 +116,7 @@ class EvaluateParams:
     # The named preset the other fields were set from (``evaluate --convention``), or None.
     convention: str | None = None
     pfc_fps: float = 30.0
+    bas_beats: str = "motion_span"
     pfc_clip_frames: int | None = None
 
     def __post_init__(self) -> None:
@@ -126,6 +127,7 @@ class EvaluateParams:
             "fid_reference": ("paired_gt", "train_gt", "all_gt"),
             "kinetic_mode": ("parity", "corrected"),
             "fid_origin": ("world", "first_frame_root"),
+            "bas_beats": ("motion_span", "whole_track_mint"),
             "beat_detector": ("mint", "bailando"),
             "fpd_parity": ("spec", "transflower"),
             "fpd_aggregate": ("per_piece_mean", "pooled"),
@@ -174,6 +176,9 @@ class EvalSequence:
         measures: [start, stop) of every complete measure inside the used frames (the
             store's measures table, same time base); the units of ``fid_unit = "measure"``
             and ``mse_reduce = "measure_mean"``.
+        music_beats_track: the music beats from the first used frame to the end of the track
+            (same time base; beats past the last motion frame included), for ``bas_beats =
+            "whole_track_mint"``; or None.
         gen_positions_before: the generated positions of the skipped first frames
             (``skip_frames``): ``bas_mint`` detects motion beats on the whole clip and drops
             the skipped frames afterwards, as mint does with its 120 seed frames.
@@ -193,6 +198,7 @@ class EvalSequence:
     measures: tuple[tuple[int, int], ...] = ()
     gen_positions_before: np.ndarray | None = None
     missing: dict[str, str] = field(default_factory=dict)
+    music_beats_track: np.ndarray | None = None
 
 
 @dataclass
@@ -321,15 +327,19 @@ def _beat_metrics(
     for s in seqs:
         pos, beats = s.gen_positions, s.music_beats
         assert pos is not None and beats is not None
+        mint_beats = beats
+        if p.bas_beats == "whole_track_mint":
+            if s.music_beats_track is None:
+                raise ValueError(f"{s.seq_id}: bas_beats whole_track_mint needs the track's beats")
+            mint_beats = s.music_beats_track
+        mint = {"sigma": p.bas_sigma, "order": p.mint_order, "beats": p.bas_beats}
         if s.gen_positions_before is not None and len(s.gen_positions_before):
             # mint finds motion beats on the whole clip, then drops the first frames
             skip = len(s.gen_positions_before)
             whole = np.concatenate([s.gen_positions_before, pos])
-            score = bas_mint(
-                whole, beats + skip, sigma=p.bas_sigma, order=p.mint_order, skip_frames=skip
-            )
+            score = bas_mint(whole, mint_beats + skip, skip_frames=skip, **mint)  # type: ignore[arg-type]
         else:
-            score = bas_mint(pos, beats, sigma=p.bas_sigma, order=p.mint_order)
+            score = bas_mint(pos, mint_beats, **mint)  # type: ignore[arg-type]
         per["bas_mint"].append((s.seq_id, score))
         per["bas_bailando"].append(
             (
@@ -362,6 +372,7 @@ def _beat_metrics(
             "sigma": p.bas_sigma,
             "order": p.mint_order,
             "fps": p.fps,
+            "music_beats": p.bas_beats,
         },
         "bas_bailando": {
             "convention": "Bailando beat_align_score.py",

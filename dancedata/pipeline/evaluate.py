@@ -15,6 +15,12 @@ positions only is used as it is). The skeleton is recorded in ``config.skeleton`
 convention of every metric computed from positions. Other stores: ``smpl_model`` if given,
 else the store's ``motion/positions``. Music beats are the store's ``audio/beats`` (librosa
 ``beat_track``).
+beside ground-truth frame i, in SMPL's frame (metres, y up). Ground-truth positions come from
+SMPL forward kinematics with ``smpl_model`` (else the store's ``motion/positions``); generated
+positions from forward kinematics of its rotations with ``smpl_model`` (else the positions the
+file holds). Music beats are the store's ``audio/beats`` (librosa ``beat_track``), inside the
+compared frames, or for ``bas_beats = "whole_track_mint"`` (mint's generated-motion path) up to
+the end of the track.
 """
 
 from __future__ import annotations
@@ -323,9 +329,10 @@ def _pair(
             gt_rows = euler75_rows(gt["euler"][cut], gt["trans"][cut])
     else:
         missing["rotations"] = "generated motion holds joint positions only (no rotations)"
-    music = None
+    music = track_beats = None
     if beats is not None:
         music = beats[(beats >= skip) & (beats < stop)] - skip
+        track_beats = beats[beats >= skip] - skip
     elif beats_missing:
         missing["music_beats"] = beats_missing
     if measures is None:
@@ -349,6 +356,7 @@ def _pair(
         music_beats=music,
         measures=inside,
         missing=missing,
+        music_beats_track=track_beats,
     )
     info = {
         "seq_id": seq_id,
@@ -362,11 +370,14 @@ def _pair(
 
 
 def _beats(store: DanceStore, seq_id: str) -> tuple[np.ndarray | None, str | None]:
+    """Music-beat frames from the sequence's first frame to the end of its track (beats past
+    the last motion frame included: ``bas_beats = whole_track_mint`` uses them; every other
+    beat metric keeps those inside the compared frames)."""
     if "audio/beats" not in store.array_names():
         return None, "the store has no audio/beats (run featurize with the fact family)"
     if store.audio_frames(seq_id) == 0:
         return None, "the sequence has no music"
-    return beat_frames(store.audio(seq_id, "beats")), None
+    return beat_frames(store.audio_to_track_end(seq_id, "beats")), None
 
 
 def _reference_units(

@@ -1,4 +1,5 @@
-"""Beat metrics (EXPERIMENTS.md §4.4), each under its own name; they give different numbers.
+"""Beat metrics (docs/METRICS.md, "Beat scores"), each under its own name; they give different
+numbers.
 
 Per-sequence functions (positions in, one float out); :func:`mean_over_units` averages them over
 sequences. Frames are motion frames; music beats are frame indices at the motion frame rate
@@ -7,6 +8,8 @@ sequences. Frames are motion frames; music beats are frame indices at the motion
 * ``bas_mint`` — motion → music, higher is better (mint ``calculate_beat_scores.py``): motion
   beats = strict minima over ±``order`` frames of the summed joint displacement; mean over motion
   beats of exp(−d²/(2σ²)), d = frames to the nearest music beat, σ = 3; 0 without motion beats.
+  Which music beats count is named (``beats``: the motion's span, or the whole track as mint
+  does for generated motion).
 * ``bas_bailando`` — music → motion, higher is better (Bailando ``beat_align_score.py``): motion
   beats = minima of the mean joint displacement smoothed by a Gaussian (σ = 5); music beats
   before frame F−1 only; mean over music beats of exp(−d²/(2·9)).
@@ -34,6 +37,8 @@ from dancedata.compute.motion_features import (
 )
 
 __all__ = [
+    "BAS_BEATS",
+    "BasBeats",
     "BeatCounts",
     "bas_bailando",
     "bas_mint",
@@ -44,6 +49,10 @@ __all__ = [
     "greedy_beat_matching",
     "motion_beats_choreograph",
 ]
+
+
+BasBeats = Literal["motion_span", "whole_track_mint"]
+BAS_BEATS: tuple[str, ...] = ("motion_span", "whole_track_mint")
 
 
 def beat_frames(onehot: np.ndarray, n_frames: int | None = None) -> np.ndarray:
@@ -69,21 +78,32 @@ def bas_mint(
     sigma: float = 3.0,
     order: int = 10,
     skip_frames: int = 0,
+    beats: BasBeats = "motion_span",
 ) -> float:
     """mint's beat-alignment score of one sequence (module docstring).
 
     Args:
         positions: (F, J, 3) joint positions at 60 fps (order 10 is "10 for 60FPS").
-        music_beats: music-beat frame indices; those ≥ F are ignored.
+        music_beats: music-beat frame indices (frame 0 = the motion's first frame).
         sigma: the Gaussian's σ in frames.
         order: argrelextrema order (frames each side).
         skip_frames: drop beats of both kinds before this frame after detection (mint scores
             generated motion on frames 120:).
+        beats: which music beats a motion beat may match (:data:`BAS_BEATS`):
+            ``"motion_span"`` those < F (mint's path for real data, which cuts the audio
+            features to the motion's length); ``"whole_track_mint"`` every given beat, also
+            after the last motion frame (mint's path for generated motion, which keeps the
+            whole track's beats, so a motion beat near the end can match a later music beat).
     """
+    if beats not in BAS_BEATS:
+        raise ValueError(f"beats must be one of {', '.join(BAS_BEATS)}, got {beats!r}")
     p = _positions(positions)
     motion = motion_beats_mint(p, order=order)
     music = np.asarray(music_beats, dtype=np.int64)
-    music = music[(music >= skip_frames) & (music < p.shape[0])]
+    keep = music >= skip_frames
+    if beats == "motion_span":
+        keep &= music < p.shape[0]
+    music = music[keep]
     motion = motion[motion >= skip_frames]
     if motion.size and not music.size:
         return float("nan")
