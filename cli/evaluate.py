@@ -25,6 +25,14 @@ def evaluate_command(
             "another dancedata store.",
         ),
     ],
+    generations: Annotated[
+        str | None,
+        typer.Option(
+            help="Multimodality (mm_k, mm_g): a folder of generation runs, one subfolder per "
+            "run (e.g. gens/0, gens/1, ...), each laid out like --generated; the runs' "
+            "generations of the scored sequences are grouped by music piece.",
+        ),
+    ] = None,
     split: Annotated[str, typer.Option(help="Split to score (train, val, test).")] = "test",
     scheme: Annotated[str, typer.Option(help="Split scheme.")] = "crossmodal",
     exclude_genres: Annotated[
@@ -245,6 +253,7 @@ def evaluate_command(
         generated_fps=generated_fps,
         generated_up_axis=generated_up_axis,
         params=params,
+        generations=Path(generations) if generations else None,
     )
     summary = run(store, options)
     if as_json:

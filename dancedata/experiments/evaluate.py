@@ -24,13 +24,16 @@ Metrics and what they need (both sides):
 * ``pfc``, ``pfc_gt``: EDGE's Physical Foot Contact score of the generated / ground-truth
   SMPL-24 positions, taken every ``fps / pfc_fps``-th frame (EDGE: 30 fps), whole sequences or
   clips of ``pfc_clip_frames`` frames at that rate; mean over clips × 10⁴.
+* ``mm_k``, ``mm_g``: multimodality, several generations per music piece (``generations``):
+  the mean over pieces of the mean pairwise feature distance of that piece's generations,
+  z-scored by the ground truth's features (as ``div_*``).
 """
 
 from __future__ import annotations
 
 import math
 from collections import defaultdict
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -53,6 +56,7 @@ from dancedata.experiments.metrics import (
     mse,
 )
 from dancedata.experiments.metrics.beats import decimate_beats
+from dancedata.experiments.metrics.multimodality import multimodality
 from dancedata.experiments.metrics.pfc import pfc
 
 __all__ = ["METRICS", "EvalSequence", "EvaluateParams", "Evaluation", "evaluate_sequences"]
@@ -76,6 +80,8 @@ METRICS = (
     "fmd",
     "pfc",
     "pfc_gt",
+    "mm_k",
+    "mm_g",
 )
 _FEATURE_METRICS = ("fid_k", "fid_g", "div_k", "div_g", "div_k_gt", "div_g_gt")
 _BEAT_METRICS = METRICS[7:14]
@@ -479,6 +485,34 @@ def _pfc_metrics(
     )
 
 
+def _multimodality_metrics(
+    generations: Mapping[str, Sequence[np.ndarray]],
+    seqs: list[EvalSequence],
+    p: EvaluateParams,
+    out: list[MetricResult],
+    reference: Sequence[np.ndarray] | None,
+    kind: str,
+) -> None:
+    """mm_k / mm_g: each group's generations (whole compared frames, one feature vector each),
+    z-scored by the ground-truth units' features, as div_* is."""
+    feats = {
+        "fps": p.fps,
+        "kinetic_mode": p.kinetic_mode,
+        "geometric_frame_time_s": p.geometric_frame_time_s,
+        "origin": p.fid_origin,
+    }
+    gt = list(reference) if reference is not None else _units(seqs, "gt_positions", False)
+    ref = motion_feature_matrix(gt, kind, **feats) if p.normalize else None  # type: ignore[arg-type]
+    groups = {k: motion_feature_matrix(list(v), kind, **feats) for k, v in generations.items()}  # type: ignore[arg-type]
+    name = f"mm_{kind[0]}"
+    frames = sum(len(a) for v in generations.values() for a in v)
+    r = multimodality(groups, ref, name=name, n_frames=frames)
+    if not r.details["n_groups"]:
+        raise ValueError("no music piece has 2 or more generations")
+    convention = {**r.convention, "features": kind, "group": "music", **feats}
+    out.append(MetricResult(name, r.value, convention, r.n_units, r.n_frames, r.details))
+
+
 def _guarded(
     names: Sequence[str], skipped: dict[str, str], out: list[MetricResult], run: Callable[[], None]
 ) -> None:
@@ -499,11 +533,14 @@ def evaluate_sequences(
     params: EvaluateParams,
     unreadable: Sequence[dict[str, str]] = (),
     reference_positions: Sequence[np.ndarray] | None = None,
+    generations: Mapping[str, Sequence[np.ndarray]] | None = None,
 ) -> Evaluation:
     """Every metric of :data:`METRICS` over ``seqs``; ``unreadable`` ({seq_id, reason}) are
     sequences with no usable generated motion at all, listed as unscored under every metric.
     ``reference_positions``: the FID / diversity reference units when ``fid_reference`` is not
-    ``paired_gt`` (e.g. every train sequence's ground truth, cut as ``fid_unit`` says)."""
+    ``paired_gt`` (e.g. every train sequence's ground truth, cut as ``fid_unit`` says).
+    ``generations``: music piece → the SMPL-24 positions of its several generations (mm_k,
+    mm_g); skipped when None."""
     if (params.fid_reference == "paired_gt") != (reference_positions is None):
         raise InputError(
             f"fid_reference {params.fid_reference!r} "
@@ -618,6 +655,20 @@ def evaluate_sequences(
             )
         else:
             skipped[name] = "no sequence with SMPL-24 joint positions"
+
+    if generations is None:
+        for name in ("mm_k", "mm_g"):
+            skipped[name] = "needs several generations per music piece (evaluate --generations)"
+    else:
+        for kind in ("kinetic", "geometric"):
+            _guarded(
+                [f"mm_{kind[0]}"],
+                skipped,
+                out,
+                lambda kind=kind: _multimodality_metrics(
+                    generations, positions, params, out, reference_positions, kind
+                ),
+            )
 
     out.sort(key=lambda r: METRICS.index(r.name))
     results = [_with_unscored(r, params) for r in out]

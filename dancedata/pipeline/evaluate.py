@@ -86,6 +86,7 @@ class EvaluateOptions:
     generated_fps: float | None = None
     generated_up_axis: str = "y"
     params: EvaluateParams = field(default_factory=EvaluateParams)
+    generations: Path | None = None
 
 
 @dataclass
@@ -380,6 +381,60 @@ def _beats(store: DanceStore, seq_id: str) -> tuple[np.ndarray | None, str | Non
     return beat_frames(store.audio_to_track_end(seq_id, "beats")), None
 
 
+def _generation_runs(folder: Path) -> list[Path]:
+    """The generation runs of ``--generations``: its subfolders (sorted by name), each laid out
+    like ``--generated`` (one <seq_id> file per sequence); at least 2."""
+    if not folder.is_dir():
+        raise InputError("--generations must be a folder of generation-run subfolders", folder)
+    runs = sorted(d for d in folder.iterdir() if d.is_dir() and not d.name.startswith("."))
+    if len(runs) < 2:
+        raise InputError(
+            f"--generations needs at least 2 run subfolders (<run>/<seq_id>.npy), found "
+            f"{len(runs)}",
+            folder,
+        )
+    return runs
+
+
+def _generations(
+    store: DanceStore,
+    runs: list[Path],
+    seqs: list[EvalSequence],
+    options: EvaluateOptions,
+    model: Any,
+) -> tuple[dict[str, list[np.ndarray]], list[dict[str, str]], list[str]]:
+    """Music piece → the positions of every run's generation of its scored sequences, cropped
+    as the scored pair is ([skip, min(F_gt, F_gen)), at most max_frames); the (run, seq_id,
+    reason) of every generation that could not be read; the files' sha256."""
+    params = options.params
+    groups: dict[str, list[np.ndarray]] = {}
+    problems: list[dict[str, str]] = []
+    hashes: list[str] = []
+    for seq in seqs:
+        gt_frames = int(store.sequence(seq.seq_id)["n_frames"])
+        for run in runs:
+            try:
+                file = find_generated_file(run, seq.seq_id)
+                if file is None:
+                    raise InputError(f"no generated file {seq.seq_id}", run)
+                hashes.append(sha256_file(file))
+                gen = _adapt(_gen_from_file(file), options, params.fps)
+                positions, why = _gen_positions(gen, model)
+                if positions is None:
+                    raise InputError(str(why), file)
+                stop = min(gt_frames, len(positions))
+                if params.max_frames is not None:
+                    stop = min(stop, params.skip_frames + params.max_frames)
+                if stop - params.skip_frames < 3:
+                    raise InputError(f"{stop - params.skip_frames} frames after skipping", file)
+            except (DancedataError, ValueError) as exc:
+                problems.append({"run": run.name, "seq_id": seq.seq_id, "reason": str(exc)})
+                continue
+            key = seq.music_id or seq.seq_id
+            groups.setdefault(key, []).append(positions[params.skip_frames : stop])
+    return groups, problems, sorted(hashes)
+
+
 def _reference_units(
     store: DanceStore,
     options: EvaluateOptions,
@@ -475,6 +530,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         raise InputError(f"--generated-up-axis must be y or z, got {options.generated_up_axis!r}")
     if options.generated_fps is not None and not options.generated_fps > 0:
         raise InputError(f"--generated-fps must be positive, got {options.generated_fps}")
+    runs = _generation_runs(Path(options.generations)) if options.generations else None
     store = open_store(store_path, options.version)
     seq_ids = store.seq_ids(split=options.split, scheme=options.scheme)
     genres = set(options.exclude_genres)
@@ -563,6 +619,18 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         for result in evaluation.results:
             if result.name not in _ROTATION_METRICS:
                 result.convention["skeleton"] = skeleton.name
+    generations = None
+    generations_info: dict[str, Any] | None = None
+    if runs is not None:
+        generations, problems, hashes = _generations(store, runs, seqs, options, model)
+        generations_info = {
+            "folder": str(options.generations),
+            "runs": [r.name for r in runs],
+            "group": "music_id",
+            "files_sha256": hashes,
+            "unread": problems,
+        }
+    evaluation = evaluate_sequences(seqs, params, unreadable, reference, generations)
     config = {
         "params": params.as_dict(),
         "split": options.split,
@@ -592,6 +660,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
                 "store": store.manifest.get("fingerprint"),
                 "store_version": store.version,
                 "generated": gen_id,
+                "generations": generations_info,
                 "dancedata": __version__,
             }
         )
@@ -613,6 +682,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         "split": f"{options.scheme}:{options.split}",
         "genres_excluded": sorted(genres),
         "generated": {**gen_id, "layouts": sorted({i["layout"] for i in sequences_info})},
+        "generations": generations_info,
         "dancedata_version": __version__,
         "created_at": created,
         "config": config,
