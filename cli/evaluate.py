@@ -95,6 +95,13 @@ def evaluate_command(
         float, typer.Option(help="ε added to covariances when sqrtm is not finite.")
     ] = 1e-6,
     bas_sigma: Annotated[float, typer.Option(help="σ (frames) of bas_mint / bas_bailando.")] = 3.0,
+    beat_source: Annotated[
+        str,
+        typer.Option(
+            help="Music beats of every beat metric: fact (audio/beats, the store's default) or "
+            "bailando (audio/beats_bailando: featurize --audio-families bailando_beats)."
+        ),
+    ] = "fact",
     bas_beats: Annotated[
         str,
         typer.Option(
@@ -219,6 +226,7 @@ def evaluate_command(
         fid_eps=fid_eps,
         bas_sigma=bas_sigma,
         bas_beats=bas_beats,
+        beat_source=beat_source,
         beat_tol=beat_tol,
         beat_detector=beat_detector,
         msd_fps=msd_fps,

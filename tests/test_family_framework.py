@@ -37,6 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 MOTION = ["rotations", "positions", "kinematics", "angular", "geometric"]
 MOTION += ["rotations_from_positions", "laban", "angular_derivatives"]
 AUDIO = ["fact", "stems", "nmfd", "mel96", "stft_frames", "tempogram"]
+AUDIO.append("bailando_beats")
 
 
 # ----------------------------------------------------------------------------- registry

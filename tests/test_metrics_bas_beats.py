@@ -96,7 +96,7 @@ def test_evaluate_whole_track_mint_keeps_beats_after_the_last_motion_frame(
                 "--bas-beats", mode, "--out", str(out))  # fmt: skip
         record = json.loads((out / "results.json").read_text())
         row = next(r for r in record["results"] if r["metric"] == "bas_mint")
-        assert row["convention"]["music_beats"] == mode
+        assert row["convention"]["music_beats_span"] == mode
         values[mode] = row["value"]
     s = dancedata.open_store(store)
     model = load_smpl_model(model_path)

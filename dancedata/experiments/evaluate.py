@@ -85,6 +85,10 @@ METRICS = (
 )
 _FEATURE_METRICS = ("fid_k", "fid_g", "div_k", "div_g", "div_k_gt", "div_g_gt")
 _BEAT_METRICS = METRICS[7:14]
+_BEAT_SOURCES = {  # evaluate's beat_source -> the store array and its recipe, recorded
+    "fact": "audio/beats (FACT: librosa beat_track, start_bpm = music BPM)",
+    "bailando": "audio/beats_bailando (Bailando: HPSS percussive, median onset, beat_track)",
+}
 
 
 @dataclass(frozen=True)
@@ -123,6 +127,7 @@ class EvaluateParams:
     convention: str | None = None
     pfc_fps: float = 30.0
     bas_beats: str = "motion_span"
+    beat_source: str = "fact"
     pfc_clip_frames: int | None = None
 
     def __post_init__(self) -> None:
@@ -134,6 +139,7 @@ class EvaluateParams:
             "kinetic_mode": ("parity", "corrected"),
             "fid_origin": ("world", "first_frame_root"),
             "bas_beats": ("motion_span", "whole_track_mint"),
+            "beat_source": ("fact", "bailando"),
             "beat_detector": ("mint", "bailando"),
             "fpd_parity": ("spec", "transflower"),
             "fpd_aggregate": ("per_piece_mean", "pooled"),
@@ -378,7 +384,7 @@ def _beat_metrics(
             "sigma": p.bas_sigma,
             "order": p.mint_order,
             "fps": p.fps,
-            "music_beats": p.bas_beats,
+            "music_beats_span": p.bas_beats,
         },
         "bas_bailando": {
             "convention": "Bailando beat_align_score.py",
@@ -409,6 +415,8 @@ def _beat_metrics(
     }
     for name in ("beat_coverage", "beat_hit_rate", "beat_accuracy"):
         conventions[name] = dict(counted)
+    for convention in conventions.values():
+        convention["music_beats"] = _BEAT_SOURCES[p.beat_source]
     frames = {s.seq_id: s.n_frames for s in seqs}
     for name in _BEAT_METRICS:
         values = []

@@ -370,15 +370,22 @@ def _pair(
     return seq, info
 
 
-def _beats(store: DanceStore, seq_id: str) -> tuple[np.ndarray | None, str | None]:
+_BEAT_ARRAYS = {"fact": ("beats", "fact"), "bailando": ("beats_bailando", "bailando_beats")}
+
+
+def _beats(
+    store: DanceStore, seq_id: str, source: str = "fact"
+) -> tuple[np.ndarray | None, str | None]:
     """Music-beat frames from the sequence's first frame to the end of its track (beats past
     the last motion frame included: ``bas_beats = whole_track_mint`` uses them; every other
-    beat metric keeps those inside the compared frames)."""
-    if "audio/beats" not in store.array_names():
-        return None, "the store has no audio/beats (run featurize with the fact family)"
+    beat metric keeps those inside the compared frames), from the array of ``beat_source``."""
+    array, family = _BEAT_ARRAYS[source]
+    if f"audio/{array}" not in store.array_names():
+        why = f"the store has no audio/{array} (run featurize --audio-families {family})"
+        return None, why
     if store.audio_frames(seq_id) == 0:
         return None, "the sequence has no music"
-    return beat_frames(store.audio_to_track_end(seq_id, "beats")), None
+    return beat_frames(store.audio_to_track_end(seq_id, array)), None
 
 
 def _generation_runs(folder: Path) -> list[Path]:
@@ -591,7 +598,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
                 gen = _gen_from_file(file, limit)
             gen = _adapt(gen, options, params.fps)
             gt, gt_missing = _gt_side(store, seq_id, model, euler_order)
-            beats, beats_missing = _beats(store, seq_id)
+            beats, beats_missing = _beats(store, seq_id, params.beat_source)
             seq, info = _pair(
                 seq_id,
                 row.get("music_id"),
