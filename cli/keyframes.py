@@ -97,7 +97,12 @@ def keyframes_command(
         typer.Option(help="Divide each stem / NMFD curve by its maximum over the sequence first."),
     ] = False,
     dp_distance: Annotated[
-        str, typer.Option(help="DP segment error: vertical (seed) or perpendicular (Roberts).")
+        str,
+        typer.Option(
+            help="DP segment error: vertical (default: the thesis's distance, same-frame "
+            "residual of linear interpolation) or perpendicular (Roberts' code, time-value "
+            "distance; docs/METRICS.md)."
+        ),
     ] = "vertical",
     combine: Annotated[
         str, typer.Option(help="DP combination of segment errors: max (minimax) or sum.")

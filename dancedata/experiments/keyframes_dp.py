@@ -1,13 +1,24 @@
-"""Dynamic-programming keyframes, Roberts 2018 "Salient Poses" (EXPERIMENTS.md §2.4), batched.
+"""Dynamic-programming keyframes, Roberts 2018 "Salient Poses" (docs/METRICS.md, "DP keyframe
+distance"), batched.
 
 A measure is a curve ``x_i ∈ R^D``, i = 0 … L−1 (``thesis_euler_75`` rows: metres and radians,
 unweighted). The error of keeping only frames a and b of a segment is the largest distance of
 an in-between frame from the straight line between them:
 
-- ``vertical`` (default, the seed's wording): ``e(a,b) = max_i ‖x_i − (x_a + s_i (x_b − x_a))‖``
-  with ``s_i = (i − a)/(b − a)``;
-- ``perpendicular`` (Roberts' reference code): the distance of ``y_i = (i, x_i)`` from the line
-  through ``y_a`` and ``y_b`` in (time in frames, values) space.
+- ``vertical`` (default): ``e(a,b) = max_i ‖x_i − (x_a + s_i (x_b − x_a))‖`` with
+  ``s_i = (i − a)/(b − a)``, the distance at the same frame between a pose and its linear
+  interpolation. This is the distance the thesis whose tables the experiments reproduce
+  (Lin 2022, §2.4.1) describes: "the maximum distance between the value of a point on the
+  segment and its value reconstructed by a curve linearly interpolated between two ending
+  points". It is the default because those tables are the target, and because it is in the
+  data's own units (metres and radians) at any frame rate, and it is exactly the error that
+  linear in-betweening of the chosen keyframes leaves at the worst frame.
+- ``perpendicular``, Roberts' distance (his reference code ``KeyframeSelection``,
+  ``max_point_to_line_distance``): the distance of ``y_i = (i, x_i)`` from the line through
+  ``y_a`` and ``y_b`` in (time in frames, values) space. It mixes frames with metres and
+  radians (one frame weighs as much as one metre), so it changes with the frame rate; selected
+  by name (``dp_distance = "perpendicular"``), it reproduces Roberts' selections, ties
+  included.
 
 ``C_k(t)``, the cost of the best k keyframes on [0, t] with 0 and t kept, is
 ``C_2(t) = e(0, t)`` and ``C_k(t) = min_{j} combine(C_{k−1}(j), e(j, t))``; the answer is
