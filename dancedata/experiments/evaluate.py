@@ -4,7 +4,7 @@ Input: one :class:`EvalSequence` per sequence of the split, already cropped to t
 sides share, holding whatever each side offers (joint positions, axis-angle, MSE rows, music
 beats). Output: one :class:`~dancedata.experiments.metrics.MetricResult` per metric, plus, for
 every metric, the sequences it could not use and why: a sequence is never silently left out of a
-mean. Every [CHOICE] of EXPERIMENTS.md §4 that affects a number is a field of
+mean. Every convention (docs/METRICS.md) that affects a number is a field of
 :class:`EvaluateParams` and is recorded in each result's convention.
 
 Metrics and what they need (both sides):
@@ -93,7 +93,7 @@ _BEAT_SOURCES = {  # evaluate's beat_source -> the store array and its recipe, r
 
 @dataclass(frozen=True)
 class EvaluateParams:
-    """Every convention choice of the evaluation (EXPERIMENTS.md §4, §9); recorded per result."""
+    """Every convention choice of the evaluation (docs/METRICS.md); recorded per result."""
 
     fps: float = 60.0
     mse_space: str = "euler75"

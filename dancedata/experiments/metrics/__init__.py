@@ -1,13 +1,14 @@
-"""Metrics of the experiment layer (EXPERIMENTS.md §4), each a pure function named by its
+"""Metrics of the experiment layer (docs/METRICS.md), each a pure function named by its
 convention and returning a :class:`MetricResult` (value + convention + sample size).
 
-- :mod:`.mse` — reconstruction MSE with space, wrapping and reduction (§4.1).
-- :mod:`.frechet` — the Fréchet distance as mint computes it, reference z-scoring (§4.2).
-- :mod:`.fid` — FID_k / FID_g on the AIST++ kinetic / geometric features (§4.2).
-- :mod:`.diversity` — mean pairwise feature distance (§4.3).
-- :mod:`.beats` — bas_mint, bas_bailando, ChoreoGraph's two MSDs, coverage / hit / accuracy
-  (§4.4).
-- :mod:`.fpd` — FPD and FMD (ChoreoGraph after Transflower; §4.5).
+- :mod:`.mse` — reconstruction MSE with space, wrapping and reduction.
+- :mod:`.frechet` — the Fréchet distance as mint computes it, reference z-scoring.
+- :mod:`.fid` — FID_k / FID_g on the AIST++ kinetic / geometric features.
+- :mod:`.diversity` — mean pairwise feature distance.
+- :mod:`.beats` — bas_mint, bas_bailando, ChoreoGraph's two MSDs, coverage / hit / accuracy.
+- :mod:`.fpd` — FPD and FMD (ChoreoGraph after Transflower).
+- :mod:`.pfc` — EDGE's Physical Foot Contact score.
+- :mod:`.multimodality` — mean distance between generations for the same music.
 """
 
 from dancedata.experiments.metrics.beats import (
@@ -25,6 +26,8 @@ from dancedata.experiments.metrics.fid import fid, motion_feature_matrix
 from dancedata.experiments.metrics.fpd import fmd, fpd
 from dancedata.experiments.metrics.frechet import frechet_distance, reference_normalization
 from dancedata.experiments.metrics.mse import mse
+from dancedata.experiments.metrics.multimodality import multimodality
+from dancedata.experiments.metrics.pfc import pfc
 from dancedata.experiments.metrics.result import MetricResult, mean_over_units
 
 __all__ = [
@@ -45,5 +48,7 @@ __all__ = [
     "motion_beats_choreograph",
     "motion_feature_matrix",
     "mse",
+    "multimodality",
+    "pfc",
     "reference_normalization",
 ]

@@ -1,4 +1,4 @@
-"""Diversity (EXPERIMENTS.md §4.3; Bailando ``calculate_avg_distance``, FACT Dist_k / Dist_g).
+"""Diversity (docs/METRICS.md; Bailando ``calculate_avg_distance``, FACT Dist_k / Dist_g).
 
     Div(F̃) = 2 / (n(n−1)) · Σ_{i<j} ‖f̃_i − f̃_j‖₂
 

@@ -1,4 +1,4 @@
-"""FPD and FMD (EXPERIMENTS.md §4.5; ChoreoGraph 004 §4.2.1, after Transflower).
+"""FPD and FMD (docs/METRICS.md; ChoreoGraph 004 §4.2.1, after Transflower).
 
 Pose features are the joints' exponential maps (axis-angle, rad) concatenated per frame, with no
 normalisation: FPD is the Fréchet distance between the generated and the real pose

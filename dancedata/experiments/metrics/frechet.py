@@ -1,4 +1,4 @@
-"""Fréchet distance between two sets of feature vectors (EXPERIMENTS.md §4.2), as mint computes it.
+"""Fréchet distance between two sets of feature vectors (docs/METRICS.md, FID), as mint computes it.
 
     FD = ‖μ1 − μ2‖² + Tr Σ1 + Tr Σ2 − 2 Tr (Σ1 Σ2)^{1/2}
 

@@ -1,4 +1,4 @@
-"""Reconstruction MSE (EXPERIMENTS.md §4.1, 000 Eq. 2.8) with its space, wrapping and reduction.
+"""Reconstruction MSE (docs/METRICS.md; the thesis's Eq. 2.8): space, wrapping and reduction.
 
     MSE = 1/(N·J) · Σ_n Σ_j ‖x_n^j − x̂_n^j‖²
 
