@@ -381,7 +381,7 @@ def _beats(
     beat metric keeps those inside the compared frames), from the array of ``beat_source``."""
     array, family = _BEAT_ARRAYS[source]
     if f"audio/{array}" not in store.array_names():
-        why = f"the store has no audio/{array} (run featurize --audio-families {family})"
+        why = f"the store has no audio/{array} (run featurize with the {family} family)"
         return None, why
     if store.audio_frames(seq_id) == 0:
         return None, "the sequence has no music"
