@@ -512,12 +512,21 @@ def _multimodality_metrics(
     gt = list(reference) if reference is not None else _units(seqs, "gt_positions", False)
     ref = motion_feature_matrix(gt, kind, **feats) if p.normalize else None  # type: ignore[arg-type]
     groups = {k: motion_feature_matrix(list(v), kind, **feats) for k, v in generations.items()}  # type: ignore[arg-type]
+    if p.drop_constant_ref_columns and ref is not None:  # as for FID and diversity
+        keep = ref.std(axis=0) > 0
+        ref, groups = ref[:, keep], {k: g[:, keep] for k, g in groups.items()}
     name = f"mm_{kind[0]}"
     frames = sum(len(a) for v in generations.values() for a in v)
     r = multimodality(groups, ref, name=name, n_frames=frames)
     if not r.details["n_groups"]:
         raise ValueError("no music piece has 2 or more generations")
-    convention = {**r.convention, "features": kind, "group": "music", **feats}
+    convention = {
+        **r.convention,
+        "features": kind,
+        "group": "music",
+        "drop_constant_ref_columns": p.drop_constant_ref_columns,
+        **feats,
+    }
     out.append(MetricResult(name, r.value, convention, r.n_units, r.n_frames, r.details))
 
 
