@@ -76,7 +76,8 @@ AudioFamilies = Annotated[
         "kick, snare, hi-hat NMFD activations of the drums stem). On request: mel96 (96-bin "
         "log-power mel at the motion frame rate, ChoreoGraph), stft_frames (per-motion-frame "
         "STFT: --stft-sr Hz, one chunk per frame, hop 200, n_fft 2048 → (A, 1025, k), k = 2 at "
-        "60 fps and 16 kHz), tempogram (autocorrelation tempogram, --tempogram-frames lags). "
+        "60 fps and 16 kHz), tempogram (autocorrelation tempogram, --tempogram-frames lags), "
+        "bailando_beats (audio/beats_bailando: Bailando's music beats). "
         "Default: fact,stems,nmfd (fact alone with --stems none).",
     ),
 ]
