@@ -199,21 +199,21 @@ def _score_fid(ev: Evaluated, data: SplitData, config: ExperimentConfig, skeleto
     return out
 
 
-def _score_pfc(ev: Evaluated, data: SplitData, config: ExperimentConfig, model: Any
+def _score_pfc(ev: Evaluated, data: SplitData, config: ExperimentConfig, skeleton: Any
                ) -> dict[str, Any]:  # fmt: skip
-    from dancedata.compute.smpl_joints import smpl_joint_positions
     from dancedata.experiments.metrics.pfc import pfc
 
     m = config.data["metrics"]
     rec = ev.reconstruction
     assert rec is not None
     step = round(FPS / float(m["pfc_fps"]))
-    fake = smpl_joint_positions(model, rec.axis_angle(), rec.trans)
+    fake = skeleton.positions(rec.axis_angle(), rec.trans)
     units = [u[::step] for u in _split_units(fake, _fid_units(ev, data, "sequence"))]
     clip = int(m["pfc_clip_frames"]) or None
     record = pfc(units, fps=float(m["pfc_fps"]), up_axis="y", clip_frames=clip).as_dict()
     record["convention"].update(source_fps=FPS, frame_step=step, unit="sequence",
-                                positions="SMPL-24 FK (metres, y up)")  # fmt: skip
+                                positions="SMPL-24 FK (metres, y up)",
+                                skeleton=skeleton.name)  # fmt: skip
     return record
 
 

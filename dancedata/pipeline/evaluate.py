@@ -14,13 +14,9 @@ positions come from forward kinematics of the stored rotations about the run's r
 positions only is used as it is). The skeleton is recorded in ``config.skeleton`` and in the
 convention of every metric computed from positions. Other stores: ``smpl_model`` if given,
 else the store's ``motion/positions``. Music beats are the store's ``audio/beats`` (librosa
-``beat_track``).
-beside ground-truth frame i, in SMPL's frame (metres, y up). Ground-truth positions come from
-SMPL forward kinematics with ``smpl_model`` (else the store's ``motion/positions``); generated
-positions from forward kinematics of its rotations with ``smpl_model`` (else the positions the
-file holds). Music beats are the store's ``audio/beats`` (librosa ``beat_track``), inside the
-compared frames, or for ``bas_beats = "whole_track_mint"`` (mint's generated-motion path) up to
-the end of the track.
+``beat_track``; ``beat_source = "bailando"``: ``audio/beats_bailando``), inside the compared
+frames, or for ``bas_beats = "whole_track_mint"`` (mint's generated-motion path) up to the end of
+the track. ``generations`` (a folder of generation runs) feeds multimodality.
 """
 
 from __future__ import annotations
@@ -621,11 +617,6 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         raise InputError(f"no sequence of the split could be scored ({reasons})", generated)
 
     reference = _reference_units(store, options, model, euler_order, measures)
-    evaluation = evaluate_sequences(seqs, params, unreadable, reference)
-    if skeleton is not None:  # every metric computed from joint positions names its skeleton
-        for result in evaluation.results:
-            if result.name not in _ROTATION_METRICS:
-                result.convention["skeleton"] = skeleton.name
     generations = None
     generations_info: dict[str, Any] | None = None
     if runs is not None:
@@ -638,6 +629,10 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
             "unread": problems,
         }
     evaluation = evaluate_sequences(seqs, params, unreadable, reference, generations)
+    if skeleton is not None:  # every metric computed from joint positions names its skeleton
+        for result in evaluation.results:
+            if result.name not in _ROTATION_METRICS:
+                result.convention["skeleton"] = skeleton.name
     config = {
         "params": params.as_dict(),
         "split": options.split,
