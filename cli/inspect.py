@@ -83,8 +83,13 @@ def validate(
     notes = store_notes(store)
     shown, hidden = shown_problems(problems)
     if as_json:
-        record = {"valid": not problems, "deep": deep, "problems": shown,
-                  "problem_count": len(problems), "notes": notes[:MAX_SHOWN]}
+        record = {
+            "valid": not problems,
+            "deep": deep,
+            "problems": shown,
+            "problem_count": len(problems),
+            "notes": notes[:MAX_SHOWN],
+        }
         typer.echo(json.dumps(record, indent=2))
     else:
         for note in notes[:MAX_SHOWN]:

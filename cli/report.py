@@ -38,9 +38,7 @@ def report(
 
     check_report_path(out)
     record = out.with_suffix(".croissant.json") if croissant else None
-    html = build_report(
-        store, version, gallery=gallery, croissant=record.name if record else None
-    )
+    html = build_report(store, version, gallery=gallery, croissant=record.name if record else None)
     if record is not None:
         from dancedata.viz.croissant import croissant_record, write_croissant
 

@@ -66,8 +66,10 @@ LAYER_OF: dict[str, tuple[str, str]] = {
     "dancedata.safe_pickle": ("io", "the restricted unpickler that io's model readers use"),
     "dancedata.compute": ("compute", "pure array-in, array-out functions"),
     "dancedata.smpl": ("compute", "SMPL-24 joint names and parents: constant tables"),
-    "dancedata.smpl_skeletons": ("compute", "picks an SMPL model file (io) or the built-in rest "
-    "skeleton (compute) for joint positions"),
+    "dancedata.smpl_skeletons": (
+        "compute",
+        "picks an SMPL model file (io) or the built-in rest skeleton (compute) for joint positions",
+    ),
     "dancedata.bvh_ops": ("compute", "operations on a parsed BVH clip: io.bvh + compute arrays"),
     "dancedata.aist_names": ("compute", "AIST++ sequence-name parsing: pure string functions"),
     "dancedata.seq_ids": ("compute", "the seq_id character set, checked at ingest and on read"),
@@ -101,8 +103,7 @@ FORBIDDEN_SIDEWAYS: dict[tuple[str, str], str] = {
 }
 
 # Not fixed yet. Each line names the issue-15 item that removes it; delete the line when it does.
-KNOWN_VIOLATIONS: tuple[str, ...] = (
-)
+KNOWN_VIOLATIONS: tuple[str, ...] = ()
 
 
 def module_files(sources: tuple[tuple[Path, str], ...]) -> dict[str, Path]:

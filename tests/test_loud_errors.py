@@ -295,8 +295,11 @@ def test_errors_keep_their_file_through_pickle() -> None:
     from dancedata.errors import InputError, StoreError
     from dancedata.exec.executors import ClusterError
 
-    for error in (InputError("bad header", "/data/a.bvh"), StoreError("locked", "s3://b/x"),
-                  ClusterError("no workers left")):
+    for error in (
+        InputError("bad header", "/data/a.bvh"),
+        StoreError("locked", "s3://b/x"),
+        ClusterError("no workers left"),
+    ):
         back = pickle.loads(pickle.dumps(error))
         assert type(back) is type(error)
         assert (back.problem, back.path, str(back)) == (error.problem, error.path, str(error))

@@ -144,8 +144,9 @@ def test_remote_versions_get_the_same_checksums_record_as_local_ones(stores):
 
     remote, local = StoreLayout(stores["url"]), StoreLayout(stores["local"])
     for version in ("v1", "v2", "v3"):
-        mine, theirs = load_record(remote.version_backend(version)), load_record(
-            local.version_backend(version)
+        mine, theirs = (
+            load_record(remote.version_backend(version)),
+            load_record(local.version_backend(version)),
         )
         assert mine is not None, version
         assert mine["algorithm"] == "sha256" and mine["record_version"] == 2
@@ -161,8 +162,11 @@ def test_remote_versions_get_the_same_checksums_record_as_local_ones(stores):
     source = f"{BUCKET}/stores/demo/versions/v1"
     copy = f"{BUCKET}/stores/zeroed/versions/v1"
     fs.copy(source, copy, recursive=True)
-    chunk = next(r for r in sorted(load_record(local.version_backend("v1"))["files"])
-                 if r.startswith("data.zarr/motion/") and "/c/" in r)
+    chunk = next(
+        r
+        for r in sorted(load_record(local.version_backend("v1"))["files"])
+        if r.startswith("data.zarr/motion/") and "/c/" in r
+    )
     size = fs.size(f"{copy}/{chunk}")
     fs.pipe_file(f"{copy}/{chunk}", bytes(size))
     zeroed = StoreLayout(f"s3://{BUCKET}/stores/zeroed").version_backend("v1")
@@ -194,9 +198,11 @@ def test_remote_children_reference_the_parents_unchanged_files(stores):
         )
         for rel, holder in refs.items():
             assert holder != version and fs.exists(f"{prefix}/{holder}/{rel}"), (rel, holder)
-            assert not fs.exists(f"{prefix}/{holder}/{REFERENCES_FILE}") or rel not in json.loads(
-                fs.cat_file(f"{prefix}/{holder}/{REFERENCES_FILE}")
-            )["files"]  # a reference always names the version that holds the bytes
+            assert (
+                not fs.exists(f"{prefix}/{holder}/{REFERENCES_FILE}")
+                or rel
+                not in json.loads(fs.cat_file(f"{prefix}/{holder}/{REFERENCES_FILE}"))["files"]
+            )  # a reference always names the version that holds the bytes
         assert check_record(remote.version_backend(version), deep=True) == []
     # segment changes only tables: v3 references every zarr file of v2 (or v1 through it)
     v3_refs = parse_references(fs.cat_file(f"{prefix}/v3/{REFERENCES_FILE}"), "v3")

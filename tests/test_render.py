@@ -229,8 +229,12 @@ def test_frame_range_cuts_video_and_audio(aist_store: Path, tmp_path: Path) -> N
     assert abs(int(lags[int(np.argmax(score))])) <= got["sr"] // 1000
     # The first rendered frame is sequence frame 200, drawn with the side camera.
     renderer = SkeletonRenderer(ds, seq, RenderOptions(start=200, stop=500, view="side"))
-    check_pixels(got["frames"][0], renderer.pixels[0][200], renderer.styles[0].bones,
-                 renderer.layout.drawing_area(0))
+    check_pixels(
+        got["frames"][0],
+        renderer.pixels[0][200],
+        renderer.styles[0].bones,
+        renderer.layout.drawing_area(0),
+    )
     # skeleton_frames gives the same images as RGB arrays (before compression).
     first = next(skeleton_frames(ds, seq, RenderOptions(start=200, stop=500, view="side")))
     assert first.shape == (480, 640, 3) and first.dtype == np.uint8
@@ -294,13 +298,18 @@ def test_bvh_render_up_axis_fk_and_side_by_side(
     for k in (10, 100):
         px = renderer.pixels[0][k]
         assert px[head, 1] < px[foot, 1]  # BVH y-up: head above the feet
-        check_pixels(got["frames"][k], px, renderer.panels[0].track.parents,
-                     renderer.layout.drawing_area(0))
+        check_pixels(
+            got["frames"][k], px, renderer.panels[0].track.parents, renderer.layout.drawing_area(0)
+        )
         # Panel 2 shows the AIST++ sequence at the same time (60 fps: frame 2.4 k).
         j = renderer.panel_frame(1, k)
         assert j == int(np.floor(k / 25 * 60 + 1e-6))
-        check_pixels(got["frames"][k], renderer.pixels[1][j], renderer.panels[1].track.parents,
-                     renderer.layout.drawing_area(1))
+        check_pixels(
+            got["frames"][k],
+            renderer.pixels[1][j],
+            renderer.panels[1].track.parents,
+            renderer.layout.drawing_area(1),
+        )
 
 
 def test_generated_positions_side_by_side(aist_store: Path, tmp_path: Path) -> None:
@@ -319,8 +328,12 @@ def test_generated_positions_side_by_side(aist_store: Path, tmp_path: Path) -> N
     renderer = SkeletonRenderer(ds, seq, RenderOptions(stop=120, generated=(generated,)))
     assert renderer.panels[1].track.source == "generated"
     np.testing.assert_allclose(renderer.panels[1].track.positions, moved)
-    check_pixels(got["frames"][50], renderer.pixels[1][50], renderer.panels[1].track.parents,
-                 renderer.layout.drawing_area(1))
+    check_pixels(
+        got["frames"][50],
+        renderer.pixels[1][50],
+        renderer.panels[1].track.parents,
+        renderer.layout.drawing_area(1),
+    )
     # An unknown layout is one clear line naming the file.
     bad = tmp_path / "bad.npy"
     np.save(bad, np.zeros((10, 7)))
@@ -351,8 +364,9 @@ def test_video_pose2d_is_drawn_y_down(tmp_path: Path) -> None:
     px = renderer.pixels[0][20]
     # Joint j is at y = 40 + 2 j source pixels (y down): drawn lower for higher j, not flipped.
     assert (np.diff(px[:, 1]) > 0).all()
-    check_pixels(got["frames"][20], px, renderer.panels[0].track.parents,
-                 renderer.layout.drawing_area(0))
+    check_pixels(
+        got["frames"][20], px, renderer.panels[0].track.parents, renderer.layout.drawing_area(0)
+    )
     with pytest.raises(dancedata.errors.InputError, match="only the camera's own view"):
         SkeletonRenderer(ds, "clip", RenderOptions(view="top"))
 
@@ -385,8 +399,12 @@ def test_png_still_needs_no_pyav_and_is_the_frame(aist_store: Path, tmp_path: Pa
     image = cv2.imread(str(out))
     renderer = SkeletonRenderer(aist_store, seq, RenderOptions(view="top"))
     np.testing.assert_array_equal(image, renderer.frame(241))
-    check_pixels(image[:, :, ::-1], renderer.pixels[0][241], renderer.styles[0].bones,
-                 renderer.layout.drawing_area(0))
+    check_pixels(
+        image[:, :, ::-1],
+        renderer.pixels[0][241],
+        renderer.styles[0].bones,
+        renderer.layout.drawing_area(0),
+    )
 
 
 def test_generated_fact_rows_and_smpl_pickles_match_the_stored_motion(
@@ -408,8 +426,14 @@ def test_generated_fact_rows_and_smpl_pickles_match_the_stored_motion(
     np.save(tmp_path / "fact.npy", rows[None].astype(np.float32))
     scaling = 90.0
     with (tmp_path / "edge.pkl").open("wb") as f:
-        pickle.dump({"smpl_poses": ds.motion(seq, "axis_angle").reshape(len(trans), 72),
-                     "smpl_trans": trans * scaling, "smpl_scaling": np.array([scaling])}, f)
+        pickle.dump(
+            {
+                "smpl_poses": ds.motion(seq, "axis_angle").reshape(len(trans), 72),
+                "smpl_trans": trans * scaling,
+                "smpl_scaling": np.array([scaling]),
+            },
+            f,
+        )
     for name in ("fact.npy", "edge.pkl"):
         got = load_generated(tmp_path / name, seq, truth, smpl_model=model)
         assert got.parents == truth.parents and got.fps == truth.fps

@@ -186,8 +186,7 @@ def check_rig_size(size_m: float, unit: LengthUnit, path: str | Path) -> None:
     best = best_convention(in_file, exclude=unit.metres)
     if best is not None:
         hint = (
-            f"of the usual conventions, {_suggest(*best)}; or pass metres per file unit "
-            "as a number"
+            f"of the usual conventions, {_suggest(*best)}; or pass metres per file unit as a number"
         )
     elif in_file > 0:
         hint = (

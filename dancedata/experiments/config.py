@@ -358,9 +358,7 @@ def build_config(raw: dict[str, Any], source: str = "<config>",
                  path: Path | None = None) -> ExperimentConfig:  # fmt: skip
     """Validate ``raw`` (a parsed TOML document), fill the defaults, expand ``[matrix]``."""
     if _depth(raw, MAX_CONFIG_DEPTH) > MAX_CONFIG_DEPTH:
-        raise InputError(
-            f"tables or arrays nested deeper than {MAX_CONFIG_DEPTH} levels", source
-        )
+        raise InputError(f"tables or arrays nested deeper than {MAX_CONFIG_DEPTH} levels", source)
     raw = dict(raw)
     matrix = raw.pop("matrix", None)
     if matrix is not None and not isinstance(matrix, dict):

@@ -36,8 +36,7 @@ def _import_av(path: Path, what: str):
         import av
     except ImportError:
         raise InputError(
-            f"{what} needs PyAV, from the optional 'viz' extra ({AV_HINT}), which is not "
-            "installed",
+            f"{what} needs PyAV, from the optional 'viz' extra ({AV_HINT}), which is not installed",
             path,
         ) from None
     return av

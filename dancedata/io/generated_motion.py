@@ -99,9 +99,7 @@ def find_generated_file(folder: Path, seq_id: str) -> Path | None:
             return folder / name
     tails = tuple(f"_{seq_id}{suffix}" for suffix in GENERATED_SUFFIXES)
     prefixed = sorted(
-        folder / name
-        for name in entries
-        if name.endswith(tails) and (folder / name).is_file()
+        folder / name for name in entries if name.endswith(tails) and (folder / name).is_file()
     )
     if len(prefixed) > 1:
         names_shown = ", ".join(p.name for p in prefixed[:4])
@@ -222,8 +220,10 @@ def _make_dict_unpickler() -> Any:
             body = state[1:] if isinstance(state, tuple) and len(state) == 5 else state
             if isinstance(body, tuple) and len(body) == 4 and isinstance(body[1], _ObjectDtype):
                 shape, _, fortran, data = body
-                if shape != () or fortran or not (
-                    isinstance(data, list) and len(data) == 1 and isinstance(data[0], dict)
+                if (
+                    shape != ()
+                    or fortran
+                    or not (isinstance(data, list) and len(data) == 1 and isinstance(data[0], dict))
                 ):
                     raise InputError("an object array other than np.save's 0-d dict")
                 return data[0]

@@ -109,8 +109,7 @@ class EvaluateSummary:
             value = "nan" if row["value"] is None else f"{row['value']:.6g}"
             scored = f"{total - len(row['unscored'])}/{total}"
             lines.append(
-                f"{row['metric']:<22}{value:>14}{scored:>11}{row['n_units']:>9}"
-                f"{row['n_frames']:>9}"
+                f"{row['metric']:<22}{value:>14}{scored:>11}{row['n_units']:>9}{row['n_frames']:>9}"
             )
         for name, reason in self.record["skipped_metrics"].items():
             lines.append(f"{name:<22}{'—':>14}{f'0/{total}':>11}{0:>9}{0:>9}  ({reason})")

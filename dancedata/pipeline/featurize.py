@@ -310,8 +310,7 @@ def check_work(
         reasons.append("motion is off (--no-motion)")
     elif options.motion_families:
         reasons.append(
-            f"the motion families {', '.join(options.motion_families)} need arrays this store "
-            "lacks"
+            f"the motion families {', '.join(options.motion_families)} need arrays this store lacks"
         )
     else:
         reasons.append("no motion family was asked for")

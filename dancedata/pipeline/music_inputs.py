@@ -232,9 +232,7 @@ def decode_checked(
                 f"verified); run ingest again, or pass {ACCEPT_OPTION} to featurize",
                 path,
             )
-        decoded = decode_mono(
-            handle, sr, path=path, max_seconds=max_seconds, res_type=res_type
-        )
+        decoded = decode_mono(handle, sr, path=path, max_seconds=max_seconds, res_type=res_type)
         after = _identity(os.fstat(handle.fileno()))
     try:
         now = _identity(os.stat(path))  # the librosa fallback decodes by path

@@ -79,8 +79,10 @@ def beat_rows(
         phase = options.phase_frames if phases is None else phases.get(seq["seq_id"], 0.0)
         grid = beat_grid(int(seq["n_frames"]), float(bpm), fps, options.beats_per_measure, phase)
         for j, frame, exact, measure, number, down in zip(
-            *(grid[k].tolist() for k in
-              ("beat", "frame", "time_exact", "measure", "beat_in_measure", "downbeat")),
+            *(
+                grid[k].tolist()
+                for k in ("beat", "frame", "time_exact", "measure", "beat_in_measure", "downbeat")
+            ),
             strict=True,
         ):
             rows.append(
