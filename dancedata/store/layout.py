@@ -414,6 +414,13 @@ class StoreLayout:
         if version is None:
             latest = self.latest()
             if latest is None:
+                damaged = self.damaged_versions()
+                if damaged:  # name why, so the one line (or JSON error) says what is wrong
+                    name, problem = damaged[-1]
+                    raise StoreError(
+                        f"store has no usable committed version: {name} is damaged: {problem}",
+                        self.root,
+                    )
                 raise StoreError("store has no committed version yet", self.root)
             return latest
         if version not in committed:

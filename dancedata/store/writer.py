@@ -390,6 +390,11 @@ class VersionWriter:
 
             import zarr
 
+            from dancedata.store.reader import check_zarr_metadata
+
+            # the metadata may come from the parent version (hard links): an untrusted store's
+            # zarr.json is checked before zarr parses it (depth, size, bounds, attributes)
+            check_zarr_metadata(self.backend.at(self._key()))
             with warnings.catch_warnings():
                 # Consolidated metadata is a zarr-python extension to v3; we write it for fast
                 # opens and readers that ignore it still work.
