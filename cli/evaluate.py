@@ -204,8 +204,8 @@ def evaluate_command(
     split or folder, when no sequence can be scored, or with --strict when any sequence was not
     scored.
 
-    Example (one Bailando table row): dancedata evaluate data/stores/aist --generated out/
-    --convention bailando"""
+    Example: dancedata evaluate data/stores/aist --generated out/ --convention bailando
+    (one Bailando table row)."""
     setup(quiet)
     from pathlib import Path
 
