@@ -123,9 +123,7 @@ class FsspecBackend(StoreBackend):
         except FileNotFoundError:
             return []
         own = prefix.rstrip("/")
-        return sorted(
-            {p.rstrip("/").rsplit("/", 1)[-1] for p in entries if p.rstrip("/") != own}
-        )
+        return sorted({p.rstrip("/").rsplit("/", 1)[-1] for p in entries if p.rstrip("/") != own})
 
     def find(self, key: str, *, skip_top: Iterable[str] = ()) -> list[str]:
         self.fs.invalidate_cache()

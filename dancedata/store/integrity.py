@@ -142,7 +142,7 @@ def _chunk_files_per_array(version: StoreBackend) -> dict[str, int]:
     for rel in data_files(version):
         if not rel.startswith(prefix):
             continue
-        inner = rel[len(prefix):]
+        inner = rel[len(prefix) :]
         head, sep, _tail = inner.partition("/c/")
         if not sep:
             head = inner[:-2] if inner.endswith("/c") else None
@@ -217,8 +217,7 @@ def commit_problems(version_dir: VersionLike, parent_dir: VersionLike | None) ->
     version = _version(version_dir)
     parent = _version(parent_dir) if parent_dir is not None else None
     problems = [
-        f"{rel}: is a symbolic link (a store holds regular files only)"
-        for rel in symlinks(version)
+        f"{rel}: is a symbolic link (a store holds regular files only)" for rel in symlinks(version)
     ]
     if parent is not None:
         problems += [
@@ -268,9 +267,7 @@ def record_checksums(
         same_file = False
         if parent is not None and inherited is not None:
             mine = version.identity(rel)
-            same_file = (
-                mine is not None and parent.is_regular(rel) and mine == parent.identity(rel)
-            )
+            same_file = mine is not None and parent.is_regular(rel) and mine == parent.identity(rel)
         if same_file and inherited is not None:
             if inherited.get("bytes") != size:
                 problems.append(
@@ -534,8 +531,6 @@ def verify_store(store: str | Path, versions: list[str], *, deep: bool) -> dict[
     cache = HashCache.empty()
     sharing = _sharing_index(layout, layout.committed_versions())
     return {
-        name: check_record(
-            layout.version_backend(name), deep=deep, cache=cache, sharing=sharing
-        )
+        name: check_record(layout.version_backend(name), deep=deep, cache=cache, sharing=sharing)
         for name in versions
     }

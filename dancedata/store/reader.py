@@ -54,7 +54,8 @@ class VersionReader:
         check_zarr_metadata(self.files)
         recorded = functools.partial(recorded_chunks, self.files)  # picklable, read on demand
         store = CheckedStore(
-            self.files.zarr_store(ZARR_DIR, read_only=True), str(self.files.where(ZARR_DIR)),
+            self.files.zarr_store(ZARR_DIR, read_only=True),
+            str(self.files.where(ZARR_DIR)),
             recorded,
         )
         with warnings.catch_warnings():

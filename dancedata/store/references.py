@@ -61,8 +61,10 @@ def parse_references(data: bytes, where: Any) -> dict[str, str]:
     for key, holder in files.items():
         # a holder is a sibling version and a key a path inside it: never a way out
         parts = key.split("/")
-        if not _VERSION.match(holder) or key.startswith("/") or any(
-            p in ("", ".", "..") for p in parts
+        if (
+            not _VERSION.match(holder)
+            or key.startswith("/")
+            or any(p in ("", ".", "..") for p in parts)
         ):
             raise StoreError(
                 f"{REFERENCES_FILE} names {key!r:.80} held by {holder!r:.40}: a holder must be "

@@ -411,9 +411,7 @@ class VersionWriter:
         # before the commit still resumes them (see StoreBackend.publish).
         final = self.layout.version_key(name)
         base = self.layout.version_key(self.parent) if self.parent else None
-        self.backend.publish(
-            self._key(), final, leave_out=BUILD_DIR, last=MANIFEST_FILE, base=base
-        )
+        self.backend.publish(self._key(), final, leave_out=BUILD_DIR, last=MANIFEST_FILE, base=base)
         self.committed_as = name
         spent, self.tmp_key, self.tmp = self.tmp_key, final, self.backend.where(final)
         try:
@@ -452,9 +450,7 @@ def already_done(
     return find_version_with_fingerprint(store, fingerprint)
 
 
-def find_version_with_fingerprint(
-    store: str | Path | StoreBackend, fingerprint: str
-) -> str | None:
+def find_version_with_fingerprint(store: str | Path | StoreBackend, fingerprint: str) -> str | None:
     """The committed version whose manifest carries ``fingerprint``, if any."""
     layout = StoreLayout(store)
     if not layout.exists():

@@ -76,8 +76,9 @@ def hostile_case(
         name = f"{klass}/{plant.__name__}"
         if name in CASES:
             raise ValueError(f"duplicate hostile case {name}")
-        CASES[name] = HostileCase(name=name, klass=klass, plant=plant, note=note,
-                                  timeout_s=timeout_s)
+        CASES[name] = HostileCase(
+            name=name, klass=klass, plant=plant, note=note, timeout_s=timeout_s
+        )
         return plant
 
     return register
