@@ -108,6 +108,7 @@ fuzz: $(DEV_STAMP)
 MYPY_PATHS := dancedata/io dancedata/compute
 lint: $(DEV_STAMP) $(STEMS_STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 	$(BIN)/mypy $(MYPY_PATHS)
 
 # The arrays and extension_arrays of schemas/store.schema.json, from the arrays the code declares

@@ -19,7 +19,11 @@ def test_lint_runs_ruff_and_mypy_on_mypy_paths() -> None:
     recipe = re.search(r"^lint:.*\n((?:\t.*\n)+)", text, re.MULTILINE)
     assert recipe, "the Makefile has a lint target"
     lines = [line.strip() for line in recipe.group(1).splitlines()]
-    assert lines == ["$(BIN)/ruff check .", "$(BIN)/mypy $(MYPY_PATHS)"]
+    assert lines == [
+        "$(BIN)/ruff check .",
+        "$(BIN)/ruff format --check .",
+        "$(BIN)/mypy $(MYPY_PATHS)",
+    ]
     assert {"dancedata/io", "dancedata/compute"} <= set(_mypy_paths())
 
 
