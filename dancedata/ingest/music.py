@@ -166,7 +166,7 @@ class MusicSource(Source):
         return []
 
     def group_attrs(self) -> dict[str, dict[str, Any]]:
-        return {"motion": {"fps": self.options.fps, "source": "music", "skeleton": None}}
+        return {"motion": {"fps": self.options.fps, "source": "music"}}  # no skeleton: no motion
 
     def music_table(self, records: list[SequenceRecord]) -> MusicTable:
         rows: list[dict[str, Any]] = []
