@@ -29,6 +29,17 @@ def feature_cache_dir(tmp_path_factory) -> Iterator[Path]:
         os.environ["DANCEDATA_CACHE"] = saved
 
 
+@pytest.fixture(autouse=True)
+def loud_progress() -> Iterator[None]:
+    """``--quiet`` and ``--json`` set a process-wide flag; a command run in-process by one test
+    must not silence the progress and notes another test reads."""
+    from dancedata.progress import set_quiet
+
+    set_quiet(False)
+    yield
+    set_quiet(False)
+
+
 def real_data_root() -> Path:
     return Path(os.environ.get("DANCEDATA_REAL_DATA", _DEFAULT_REAL))
 
