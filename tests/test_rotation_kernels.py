@@ -1,6 +1,8 @@
 """The compiled rotation conversions against scipy's Rotation called directly (every Euler order,
 intrinsic and extrinsic, Tait-Bryan and proper, small, large, zero and gimbal-locked rotations),
-and the span-wise quaternion sign continuity against the per-sequence numpy function."""
+and the span-wise quaternion sign continuity against the per-sequence numpy function; the
+one-pass float32 representations (featurize's) bit-equal to the float64 pass, sign continuity
+and cast done afterwards."""
 
 from __future__ import annotations
 
@@ -14,7 +16,9 @@ from dancedata.compute.motion_representations import representations_from_axis_a
 from dancedata.compute.rotation_kernels import (
     euler_order_params,
     quat_sign_continuous_spans,
+    rotation_representations,
     rotations_from_axis_angle,
+    span_links,
 )
 from dancedata.compute.rotations import quat_sign_continuous
 
@@ -108,3 +112,54 @@ def test_order_params_refuse_nonsense():
     for bad in ("XYz", "XXY", "abc", "XY"):
         with pytest.raises(ValueError):
             euler_order_params(bad)
+
+
+ALL = ("rotmat", "euler", "quat", "rot6d", "rot6d_rows")
+
+
+def _float64_then_cast(aa, orders, bounds):  # noqa: ANN001, ANN202
+    """The earlier featurize path: float64 arrays, signs in a second pass, then float32."""
+    reps = representations_from_axis_angle(aa, ALL, orders)
+    if bounds is not None:
+        reps["quat"] = quat_sign_continuous_spans(reps["quat"], bounds)
+    return {k: v.astype(np.float32) for k, v in reps.items()}
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_one_pass_float32_is_bit_equal_to_float64_then_cast(dtype):
+    rng = np.random.default_rng(11)
+    aa = np.concatenate([_cases(600).reshape(200, 3, 3), rng.normal(0, 2, (300, 3, 3))])
+    aa = aa.astype(dtype)
+    orders = ["XYZ", "zyx", "ZXZ"]
+    # sequences of several lengths, one of a single frame, frames 0-4 and 495-499 in none
+    bounds = np.array([[5, 120], [120, 121], [121, 400], [400, 495]])
+    for b in (bounds, bounds[::-1], None):
+        got = rotation_representations(aa, ALL, orders, bounds=b)
+        want = _float64_then_cast(aa, orders, b)
+        for k in ALL:
+            assert got[k].dtype == np.float32, k
+            assert got[k].tobytes() == want[k].tobytes(), (k, b is None)
+    assert not np.array_equal(
+        got["quat"], rotation_representations(aa, ALL, orders, bounds=bounds)["quat"]
+    )
+    only = rotation_representations(aa, ["rot6d", "quat"], "XYZ", bounds=bounds)
+    assert list(only) == ["rot6d", "quat"]
+    np.testing.assert_array_equal(only["rot6d"], _float64_then_cast(aa, "XYZ", bounds)["rot6d"])
+
+
+def test_one_pass_overlapping_spans_fall_back_to_span_after_span():
+    rng = np.random.default_rng(3)
+    aa = rng.normal(0, 2, (300, 2, 3))
+    bounds = np.array([[0, 200], [100, 300]])
+    assert span_links(bounds, 300) is None
+    got = rotation_representations(aa, ["quat"], "XYZ", bounds=bounds)["quat"]
+    assert got.tobytes() == _float64_then_cast(aa, "XYZ", bounds)["quat"].tobytes()
+    with pytest.raises(ValueError, match="outside"):
+        rotation_representations(aa, ["quat"], "XYZ", bounds=np.array([[0, 301]]))
+    with pytest.raises(ValueError, match="unknown"):
+        rotation_representations(aa, ["quaternion"], "XYZ")
+
+
+def test_span_links_mark_frames_that_continue_a_sequence():
+    links = span_links(np.array([[2, 5], [5, 6], [6, 9]]), 10)
+    assert links.tolist() == [0, 0, 0, 1, 1, 0, 0, 1, 1, 0]

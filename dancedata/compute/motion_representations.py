@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from dancedata.compute.rotation_kernels import rotations_from_axis_angle
+from dancedata.compute.rotation_kernels import (
+    rotation_representations,
+    rotations_from_axis_angle,
+)
 from dancedata.compute.rotations import (
     ROT6D_LAYOUT,
     ROT6D_ROWS_LAYOUT,
@@ -63,12 +66,21 @@ def euler_per_joint(rotmat: np.ndarray, euler_order: EulerOrder) -> np.ndarray:
 
 
 def representations_from_axis_angle(
-    axis_angle: np.ndarray, names: tuple[str, ...] | list[str], euler_order: EulerOrder
+    axis_angle: np.ndarray,
+    names: tuple[str, ...] | list[str],
+    euler_order: EulerOrder,
+    *,
+    dtype: type | None = None,
+    bounds: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """(F, J, 3) axis-angle (radians) → the requested representations, float64.
 
     Quaternions come out with w ≥ 0 per frame; make them continuous with
-    :func:`continue_quat_signs`.
+    :func:`continue_quat_signs`. With ``dtype`` (float32 for the stores), every array is
+    written in that dtype by the compiled pass itself (the float64 numbers rounded once, as
+    ``astype`` would), and with ``bounds`` (S, 2) the quaternions are sign-continuous within
+    each [start, stop) of the (F, J, 3) block, in the same pass
+    (:func:`dancedata.compute.rotation_kernels.rotation_representations`).
     """
     # One compiled pass (compute.rotation_kernels: scipy's formulas, per rotation) gives the
     # quaternions, matrices and Euler angles; the 6D layouts are slices of the matrices.
@@ -78,6 +90,12 @@ def representations_from_axis_angle(
     unknown = [n for n in names if n not in KNOWN_REPRESENTATIONS]
     if unknown:
         raise ValueError(f"unknown representation {unknown[0]!r}; known: {KNOWN_REPRESENTATIONS}")
+    if dtype is not None or bounds is not None:
+        if values.ndim != 3:
+            raise ValueError(f"need axis-angle (F, J, 3) with dtype or bounds, got {values.shape}")
+        return rotation_representations(
+            values, names, euler_order, dtype=dtype or np.float64, bounds=bounds
+        )
     lead = values.shape[:-1]
     flat = values.reshape(-1, 1, 3) if values.ndim != 3 else values
     wanted = set(names)

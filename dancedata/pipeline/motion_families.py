@@ -25,7 +25,6 @@ from dancedata.compute.motion_representations import (
     representations_from_axis_angle,
     row_shape,
 )
-from dancedata.compute.rotation_kernels import quat_sign_continuous_spans
 from dancedata.pipeline.family import register_family, registered
 from dancedata.pipeline.motion_family_base import (
     BASE_ARRAYS,
@@ -97,14 +96,16 @@ class RotationsFamily(MotionFamily):
         ]
 
     def compute(self, batch: MotionBatch, settings: MotionSettings) -> dict[str, np.ndarray]:
+        # One compiled pass writes the stored float32 arrays directly, quaternions
+        # sign-continuous within each sequence (the float64 numbers rounded once).
+        keep_euler = "euler" in settings.representations and _source_euler_fits(batch, settings)
+        names = [n for n in settings.representations if not (keep_euler and n == "euler")]
         reps = representations_from_axis_angle(
-            batch.axis_angle, settings.representations, settings.euler_order
+            batch.axis_angle, names, settings.euler_order, dtype=np.float32, bounds=batch.bounds
         )
-        if "euler" in reps and _source_euler_fits(batch, settings):
+        if keep_euler:
             reps["euler"] = batch.arrays["euler"]
-        if "quat" in reps:  # sign-continuous within each sequence, in one compiled pass
-            reps["quat"] = quat_sign_continuous_spans(reps["quat"], batch.bounds)
-        return reps
+        return {name: reps[name] for name in settings.representations}
 
     def config(self, settings: MotionSettings) -> dict[str, Any]:
         return {
