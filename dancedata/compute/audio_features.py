@@ -105,15 +105,23 @@ def chroma_cens(
     The CQT under it first estimates the tuning by ``librosa.estimate_tuning`` (36 bins per
     octave, chroma_cqt's), whose pitch tracker takes |STFT| with n_fft 2048 and hop 512; when
     ``mag`` is that very |STFT| (the recipe's defaults) it is handed over instead of being
-    computed again, and the tuning, hence every value, is the same.
+    computed again, and the tuning, hence every value, is the same. The CQT itself is
+    :func:`dancedata.compute.constant_q.cqt_magnitude` (librosa's numbers, filter banks reused
+    between tracks of one tuning).
     """
     import librosa
 
-    tuning = None
+    from dancedata.compute.constant_q import cqt_magnitude
+
     if mag is not None and cfg.n_fft == 2048 and cfg.hop_length == 512:
         tuning = librosa.estimate_tuning(S=mag, sr=cfg.sr, n_fft=cfg.n_fft, bins_per_octave=36)
+    else:  # what chroma_cens's CQT estimates when given no tuning
+        tuning = librosa.estimate_tuning(y=y, sr=cfg.sr, bins_per_octave=36)
+    # chroma_cens's own CQT (7 octaves of 36 bins from C1), with the filter banks kept between
+    # tracks (compute.constant_q): the same |CQT|, hence the same chroma
+    cqt = cqt_magnitude(y, cfg.sr, cfg.hop_length, n_bins=7 * 36, bins_per_octave=36, tuning=tuning)
     chroma = librosa.feature.chroma_cens(
-        y=y, sr=cfg.sr, hop_length=cfg.hop_length, n_chroma=cfg.n_chroma, tuning=tuning
+        C=cqt, sr=cfg.sr, hop_length=cfg.hop_length, n_chroma=cfg.n_chroma
     )
     return chroma.T.astype(np.float32)
 
