@@ -8,7 +8,8 @@ Tolerances, per array (:data:`TOLERANCE`, absolute, on the arrays as stored):
 * everything else: the speed-up only reuses intermediate results that the old code computed
   twice (one STFT of the mix for the FACT features, the tuning estimate and the stems; one |STFT|
   of the drums stem for its features and its NMFD), replaces a sort by a compiled selection that
-  picks the very same value, and writes NMFD's intermediate products into reused buffers. None
+  picks the very same value, writes NMFD's intermediate products into reused buffers, and
+  keeps chroma_cens's CQT filter banks between tracks (built by the same code, reused). None
   of that changes a rounding, so the outputs are expected to be bit-identical. The test allows
   float32 rounding of the stored values (4 ulp of each array's largest magnitude), so that a
   BLAS build that orders a product's sums differently is not an error; anything above that is.
