@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from typing import Annotated, Any
 
 import typer
@@ -94,15 +93,14 @@ def featurize(
     from dancedata.pipeline.featurize import FeaturizeOptions
     from dancedata.pipeline.featurize import featurize as run
 
-    smpl_model = settings_values(MotionSettings, settings)["smpl_model"]
-    if smpl_model is not None:  # read by MotionSettings (workers inherit the environment)
-        os.environ["DANCEDATA_SMPL_MODEL"] = smpl_model
+    smpl_model = settings_values(MotionSettings, settings)["smpl_model"]  # option, else $ENV
     options = FeaturizeOptions(
         motion=motion,
         motion_families=split_csv(motion_families) or [],
         audio=audio,
         representations=split_csv(representations) or [],
         euler_order=euler_order,
+        smpl_model=smpl_model,
         version=version,
         wait_for_lock=wait,
         workers=workers,

@@ -253,3 +253,29 @@ def test_families_reading_each_other_are_refused_with_one_line(tmp_path: Path) -
     with pytest.raises(InputError, match="read each other's arrays in a circle"):
         featurize(store, options)
     assert StoreLayout(store).committed_versions() == ["v1"]
+
+
+def test_the_smpl_model_reaches_worker_processes_inside_the_task(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """``smpl_model`` travels in the options (and so in every task), not in the environment:
+    with the variable unset, two worker processes pose with the given model file, and the
+    positions equal a serial run's."""
+    import hashlib
+
+    monkeypatch.delenv("DANCEDATA_SMPL_MODEL", raising=False)
+    model = write_npz_model(tmp_path / "smpl.npz")
+    runs = {}
+    for workers in (1, 2):
+        store = _aist_store(tmp_path, f"w{workers}")
+        options = FeaturizeOptions(
+            audio=False, motion_families=["positions"], smpl_model=str(model), workers=workers
+        )
+        featurize(store, options)
+        runs[workers] = VersionReader(store).array("motion/positions")
+    sha = hashlib.sha256(model.read_bytes()).hexdigest()
+    assert runs[2].attrs["smpl_model"]["sha256"] == sha
+    np.testing.assert_array_equal(runs[2][:], runs[1][:])
+    builtin = _aist_store(tmp_path, "builtin")
+    featurize(builtin, FeaturizeOptions(audio=False, motion_families=["positions"], workers=2))
+    assert "smpl_model" not in VersionReader(builtin).array("motion/positions").attrs

@@ -60,7 +60,8 @@ class MotionSettings:
 
     representations: tuple[str, ...] = field(default_factory=_default_representations)
     euler_order: Any = "XYZ"  # scipy order, or one per joint (EulerOrder)
-    # The CLI sets $DANCEDATA_SMPL_MODEL from --smpl-model: worker processes inherit it.
+    # The CLI resolves --smpl-model (else $DANCEDATA_SMPL_MODEL) once; the value travels to
+    # workers inside this dataclass, which every task carries.
     smpl_model: str | None = setting(
         help="SMPL model file (.npz/.pkl) for positions of SMPL stores; not bundled (licence): "
         "get it from https://smpl.is.tue.mpg.de. Default: $DANCEDATA_SMPL_MODEL, else the "

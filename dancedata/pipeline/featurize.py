@@ -20,6 +20,7 @@ redoes only the tasks without a marker. ``counts`` records them as ``units`` and
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -33,6 +34,7 @@ from dancedata.compute.motion_representations import KNOWN_REPRESENTATIONS, REPR
 from dancedata.errors import InputError, StoreError
 from dancedata.exec.executors import make_executor
 from dancedata.exec.tasks import Job, TaskReport, run_tasks
+from dancedata.io.smpl_model import SMPL_MODEL_ENV
 from dancedata.pipeline.audio_families import default_families, family_problems, group_attrs
 from dancedata.pipeline.audio_track import audio_task_counts
 from dancedata.pipeline.family import ArraySpec, Family, registered, run_order
@@ -85,6 +87,10 @@ class FeaturizeOptions:
     # librosa res_type of the decode to the feature rate (recorded as audio.res_type);
     # kaiser_best reproduces FACT-era (librosa < 0.10) features. Unused with audio_config.
     resampler: str = "soxr_hq"
+    # SMPL model file for the positions family (None: the built-in edge_smpl_offsets skeleton),
+    # default $DANCEDATA_SMPL_MODEL read once here; it travels to workers inside MotionSettings,
+    # i.e. inside every task, not through their environment.
+    smpl_model: str | None = field(default_factory=lambda: os.environ.get(SMPL_MODEL_ENV) or None)
     version: str | None = None  # parent version; default latest
     wait_for_lock: bool = False
     # Execution only (never changes the data, so not in config()):
@@ -115,6 +121,7 @@ class FeaturizeOptions:
         return MotionSettings(
             representations=tuple(self.representations),
             euler_order=self.euler_order or DEFAULT_EULER_ORDER,
+            smpl_model=self.smpl_model,
         )
 
     def config(self, audio_cfg: AudioFeatureConfig | None) -> dict[str, Any]:
