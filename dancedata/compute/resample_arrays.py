@@ -155,7 +155,12 @@ def resample_rotations(
         return values[::k][:n_out].copy()
     quat = quat_sign_continuous(_to_quat(values.astype(np.float64), fmt, order))
     positions = resample_positions(values.shape[0], src_fps, dst_fps)
-    return _from_quat(resample_quaternions(quat, positions), fmt, order)
+    out = _from_quat(resample_quaternions(quat, positions), fmt, order)
+    # output frames on a source frame keep its stored values (not a re-encoding of them:
+    # an axis-angle of more than π or a quaternion's sign would change)
+    on_frame = np.abs(positions - np.round(positions)) < 1e-9
+    out[on_frame] = values[np.round(positions[on_frame]).astype(np.int64)]
+    return out
 
 
 def resample_values(values: np.ndarray, src_fps: float, dst_fps: float) -> np.ndarray:

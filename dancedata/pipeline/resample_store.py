@@ -42,6 +42,7 @@ from dancedata.pipeline.version_step import DerivedVersion, derive_version
 from dancedata.store.arrays import FrameArrayWriter
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
+from dancedata.store.layout import warn_once
 from dancedata.store.reader import VersionReader
 from dancedata.store.writer import base_fingerprint
 
@@ -94,6 +95,11 @@ def resample(store: str | Path, options: ResampleOptions) -> CommandResult:
     fps = check_fps(options.fps)
     with derive_version(store, "resample", options.version, options.wait_for_lock) as step:
         result, todo = _resample_step(step, fps)
+    if options.featurize and todo["settings_differ"]:
+        warn_once(
+            f"resample: {', '.join(todo['settings_differ'])} ran with non-default settings; "
+            f"recompute them on {result.version} with `dancedata featurize` and those settings"
+        )
     if not options.featurize or not (todo["audio_families"] or todo["motion_families"]):
         return result
     from dancedata.pipeline.featurize import FeaturizeOptions, featurize
@@ -140,25 +146,39 @@ def _source_fps(reader: VersionReader, sequences: list[dict[str, Any]]) -> float
     return float(fps)
 
 
-def _segment_config(store: str | Path, reader: VersionReader) -> dict[str, Any] | None:
-    """The config of the ``segment`` run that wrote the version's measures (walking parents)."""
+def _last_config(
+    store: str | Path, reader: VersionReader, command: str, key: str | None = None
+) -> dict[str, Any] | None:
+    """The config of the newest ``command`` run in the version's history (walking parents;
+    with ``key``, the newest whose config has a truthy ``key``)."""
     current: VersionReader | None = reader
     for _ in range(_MAX_CHAIN):
         if current is None:
             return None
         manifest = current.manifest
-        if manifest.get("command") == "segment":
-            return dict(manifest.get("config") or {})
+        config = manifest.get("config") or {}
+        if manifest.get("command") == command and (key is None or config.get(key)):
+            return dict(config)
         parent = manifest.get("parent")
         current = VersionReader(store, parent) if parent else None
     return None
 
 
-def _feature_families(reader: VersionReader, left_out: list[str]) -> dict[str, Any]:
+def _segment_config(store: str | Path, reader: VersionReader) -> dict[str, Any] | None:
+    """The config of the ``segment`` run that wrote the version's measures."""
+    return _last_config(store, reader, "segment")
+
+
+def _feature_families(
+    store: str | Path, reader: VersionReader, left_out: list[str]
+) -> dict[str, Any]:
     """What featurize must recompute at the new rate: the audio families of the parent (its
     audio group's ``families``), the motion families whose outputs were left out, and the
-    rotation representations the parent holds (rewritten consistently by featurize)."""
+    rotation representations the parent holds (rewritten consistently by featurize).
+    ``settings_differ`` lists families whose recorded settings are not featurize's defaults:
+    those are not recomputed automatically (the command says so)."""
     from dancedata.pipeline.family import registered
+    from dancedata.pipeline.family_settings import AudioSettings, MotionSettings
 
     audio_families = list(reader.group_attrs("audio").get("families") or [])
     motion_registry = registered("motion")
@@ -168,7 +188,29 @@ def _feature_families(reader: VersionReader, left_out: list[str]) -> dict[str, A
         if any(f"motion/{spec.path}" in left_out for spec in family.outputs)
     )
     reps = [n for n in ROTATION_ARRAYS if n != "axis_angle" and reader.has_array(f"motion/{n}")]
-    return {"audio_families": audio_families, "motion_families": motion, "representations": reps}
+    differ: list[str] = []
+    recorded_audio = (_last_config(store, reader, "featurize", "audio_families") or {}).get(
+        "audio_families"
+    ) or {}
+    audio_registry = registered("audio")
+    for name in audio_families:
+        if name not in audio_registry or recorded_audio.get(name) != audio_registry[name].config(
+            AudioSettings()
+        ):
+            differ.append(name)
+    recorded_motion = (_last_config(store, reader, "featurize", "motion_families") or {}).get(
+        "motion_families"
+    ) or {}
+    settings = MotionSettings(representations=tuple(reps) or ("rotmat",))
+    for name in motion:
+        if recorded_motion.get(name) != motion_registry[name].config(settings):
+            differ.append(name)
+    return {
+        "audio_families": [n for n in audio_families if n not in differ],
+        "motion_families": [n for n in motion if n not in differ],
+        "representations": reps,
+        "settings_differ": differ,
+    }
 
 
 def _resample_step(step: DerivedVersion, fps: float) -> tuple[CommandResult, dict[str, Any]]:
@@ -189,7 +231,7 @@ def _resample_step(step: DerivedVersion, fps: float) -> tuple[CommandResult, dic
     audio_arrays = sorted(n for n in reader.array_names() if n.startswith("audio/"))
     segment_config = _segment_config(step.store, reader) if reader.has_table("measures") else None
     segment_tables = [t for t in ("measures", "beats", "phrases") if reader.has_table(t)]
-    todo = _feature_families(reader, left_out)
+    todo = _feature_families(step.store, reader, left_out)
     cfg_new = AudioFeatureConfig(fps=fps)
     config: dict[str, Any] = {
         "source_fps": src_fps,
@@ -207,6 +249,7 @@ def _resample_step(step: DerivedVersion, fps: float) -> tuple[CommandResult, dic
             "hop_length": cfg_new.hop_length,
             "left_out": audio_arrays,
             "recompute_families": todo["audio_families"],
+            "recompute_by_hand": todo["settings_differ"],
         },
         "left_out_motion": left_out,
         "recompute_motion_families": todo["motion_families"],
