@@ -392,3 +392,41 @@ def test_round_trip_on_real_aist(real_data, tmp_path) -> None:
     assert np.degrees(errors["rot"].mean()) < 1.5
     assert (errors["trans"] <= errors["trans_bound"] + 1e-6).all()
     assert run_cli("validate", str(store), "--version", "v2").returncode == 0
+
+
+def test_music_only_store(synth_store, tmp_path) -> None:
+    """A store of music alone (no motion): each sequence keeps its track's feature frames at the
+    new rate, and featurize recomputes the audio arrays to match."""
+    raw, _ = synth_store
+    store = tmp_path / "music"
+    wavs = sorted(str(p) for p in (raw / "wav").glob("*.wav"))
+    run_cli("ingest", "music", *wavs, "--store", str(store), "--bpm", "120", "-q")
+    run_cli("featurize", str(store), "--audio-families", "fact", "-q")
+    out = json.loads(run_cli("resample", str(store), "--fps", "20", "--json", "-q").stdout)
+    final = VersionReader(store, out["version"])
+    music = {m["music_id"]: m for m in final.table("music").to_pylist()}
+    for seq in final.table("sequences").to_pylist():
+        m = music[seq["music_id"]]
+        frames = 1 + int(np.ceil(m["n_samples"] * 10240 / m["sr"])) // 512
+        assert seq["n_frames"] == frames == m["frame_stop"] - m["frame_start"]
+    assert final.array("audio/onset_env").shape[0] == sum(
+        s["n_frames"] for s in final.table("sequences").to_pylist()
+    )
+    assert run_cli("validate", str(store)).returncode == 0
+
+
+def test_windowed_motion_features_are_recomputed(synth_store, tmp_path) -> None:
+    """Laban efforts (windows set in frames) are left out of the resampled version and
+    recomputed by the laban family at 20 fps in the next one."""
+    raw, _ = synth_store
+    store = tmp_path / "laban"
+    run_cli("ingest", "aist", str(raw), "--store", str(store), "-q")
+    run_cli("featurize", str(store), "--motion-families", "positions,laban", "--no-audio", "-q")
+    out = json.loads(run_cli("resample", str(store), "--fps", "20", "--json", "-q").stdout)
+    mid = VersionReader(store, out["counts"]["resample_version"])
+    assert not mid.has_array("motion/laban_time")
+    assert mid.manifest["config"]["recompute_motion_families"] == ["laban"]
+    final = VersionReader(store, out["version"])
+    n = final.table("sequences").to_pylist()[-1]["frame_stop"]
+    assert final.array("motion/laban_time").shape[0] == n
+    assert final.manifest["command"] == "featurize"

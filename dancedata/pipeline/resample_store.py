@@ -266,8 +266,8 @@ def _resample_step(step: DerivedVersion, fps: float) -> tuple[CommandResult, dic
         return done, todo
 
     began = time.perf_counter()
-    new_sequences = _sequence_rows(sequences, src_fps, fps)
     music_rows, track_frames = _music_rows(reader, cfg_new)
+    new_sequences = _sequence_rows(sequences, src_fps, fps, track_frames)
     _audio_frames(new_sequences, track_frames, src_fps, fps)
     segment = _segment_tables(new_sequences, segment_config, segment_tables, src_fps, fps, step)
     with step.writer(config, fp) as version:
@@ -307,11 +307,16 @@ def _resample_step(step: DerivedVersion, fps: float) -> tuple[CommandResult, dic
 
 
 def _sequence_rows(
-    sequences: list[dict[str, Any]], src_fps: float, fps: float
+    sequences: list[dict[str, Any]], src_fps: float, fps: float, track_frames: dict[str, int]
 ) -> list[dict[str, Any]]:
+    """Sequences at the new rate: motion frames by the frame rule; a music-only sequence
+    (``source`` ``music``: no motion) keeps its track's feature frames at the new rate."""
     rows, start = [], 0
     for seq in sequences:
-        n = resampled_frame_count(int(seq["n_frames"]), src_fps, fps)
+        if seq.get("source") == "music" and seq.get("music_id") in track_frames:
+            n = track_frames[seq["music_id"]]
+        else:
+            n = resampled_frame_count(int(seq["n_frames"]), src_fps, fps)
         row = dict(seq)
         row.update(
             fps=fps,
