@@ -18,6 +18,7 @@ from dancedata.cli import (  # noqa: F401
     process,
     render,
     report,
+    resample,
     stats,
     synth,
     tempo,

@@ -20,6 +20,7 @@ EXAMPLES: dict[str, str] = {
     "--store data/stores/clips",
     "featurize": f"dancedata featurize {S} --workers 2",
     "segment": f"dancedata segment {S} --beats-per-measure 4",
+    "resample": f"dancedata resample {S} --fps 20",
     "keyframes": f"dancedata keyframes {S} --strategy even,onset --n 3,5",
     "evaluate": f"dancedata evaluate {S} --generated outputs/ --split test --out results/",
     "experiment run": f"dancedata experiment run experiments/demo.toml --store {S} "

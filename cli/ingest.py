@@ -51,6 +51,16 @@ def ingest_aist_cmd(
             "(default: every kind on disk; '' for none). Sequences lacking a kind get NaN rows."
         ),
     ] = None,
+    fps: Annotated[
+        str | None,
+        typer.Option(
+            "--fps",
+            metavar="FPS",
+            help="Store the motion at this frame rate (AIST++ is 60 fps): the 60 fps ingest, "
+            "then `dancedata resample --fps FPS` as the next version (SLERP rotations, linear "
+            "positions; see its --help).",
+        ),
+    ] = None,
     on_error: OnErrorOpt = OnError.fail,
     workers: Workers = 1,
     dask: Dask = None,
@@ -61,8 +71,16 @@ def ingest_aist_cmd(
     """Read AIST++ motion and keypoint pickles (safely: nothing in them is executed), cameras,
     splits (crossmodal, pose), ignore list and music into a new store version. Lengths are
     stored in metres: translation = smpl_trans / smpl_scaling, keypoints3d and camera
-    translation cm / 100."""
+    translation cm / 100.
+
+    Example:
+      dancedata ingest aist data/raw/aist-demo --store data/stores/aist-20fps --fps 20
+    """
     setup(quiet)
+    from dancedata.ingest.aist_inputs import AIST_FPS
+    from dancedata.pipeline.resample_store import check_fps
+
+    target_fps = None if fps is None else check_fps(fps)
     from dancedata.ingest.aist import AistIngestOptions
     from dancedata.ingest.engine import ingest
     from dancedata.ingest.registry import source_named
@@ -83,4 +101,10 @@ def ingest_aist_cmd(
 
     with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
         result = ingest(store, source_named("aist")(raw, options))
+    if target_fps is not None and target_fps != AIST_FPS:
+        from dancedata.pipeline.resample_store import resample_version
+
+        ingested = result.version
+        result = resample_version(store, target_fps, version=ingested)
+        result.counts = {**(result.counts or {}), "ingest_version": ingested}
     report(result, "ingest aist", as_json, store=str(store))

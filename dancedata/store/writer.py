@@ -338,6 +338,15 @@ class VersionWriter:
             self.backend.delete(target)
             self._zarr_group = None  # reopen: cached metadata may name the removed node
 
+    def remove_table(self, name: str) -> None:
+        """Leave out a table carried over from the parent (its data no longer fits the new
+        version, e.g. frame indices after a change of frame rate)."""
+        if name not in TABLE_FILES:
+            raise StoreError(f"unknown table {name!r}; known: {sorted(TABLE_FILES)}")
+        target = self._key(TABLE_FILES[name])
+        if self.backend.exists(target):
+            self.backend.delete(target)
+
     def write_table(self, name: str, table: pa.Table) -> Any:
         """Write one of the contract's parquet tables, replacing a carried-over one (by an
         atomic replace, never writing through a hard link into the parent)."""
