@@ -10,12 +10,18 @@
 
   - ``slerp``: ``motion/rotmat`` — per joint, matrices → unit quaternions, spherical linear
     interpolation along the shorter arc between the two neighbouring frames, → matrices;
+    ``slerp_quat`` (``motion/quat``, wxyz), ``slerp_rot6d`` / ``slerp_rot6d_rows``
+    (``motion/rot6d``, ``motion/rot6d_rows``: decoded by Gram–Schmidt, re-encoded) and
+    ``slerp_axis_angle`` (``motion/axis_angle``) the same on the other stored rotations;
+  - ``nearest``: integer arrays that are not events (masks and codes such as
+    ``motion/positions_mask``) — the value of the nearest source frame, never a blend;
   - ``linear``: ``motion/trans`` (metres), audio features (``onset_env``, ``mfcc``,
     ``chroma_cens``, per-stem ones) and ``motion/euler``. Euler angles are interpolated per
     angle on the stored values (which featurize keeps continuous in time), not on the rotation
     group: between neighbouring frames at 60 fps this is within a small fraction of a degree of
     SLERP, but not equal to it, and wrong across a 2π jump;
-  - ``event``: 0/1 event columns (``onset_peaks``, ``beats``) — each event moves to the
+  - ``event``: 0/1 event columns (``onset_peaks``, ``beats``, ``beats_bailando``, the motion
+    beats ``motion_beats_mint`` / ``motion_beats_bailando``) — each event moves to the
     nearest output frame ``round(i · (W − 1) / (L − 1))`` (the count is kept unless two events
     land on one frame), instead of being smeared by interpolation;
   - ``zeros``: FACT's six zero columns stay zero.
@@ -34,18 +40,44 @@ from dataclasses import dataclass
 import numpy as np
 
 from dancedata.compute.resample import resample_linear, resample_quaternions
-from dancedata.compute.rotations import quat_to_rotmat
+from dancedata.compute.rotations import (
+    axis_angle_to_quat,
+    quat_to_axis_angle,
+    quat_to_rotmat,
+    rot6d_rows_to_rotmat,
+    rot6d_to_rotmat,
+    rotmat_to_rot6d,
+    rotmat_to_rot6d_rows,
+)
 from dancedata.errors import InputError
 
 FIT_MODES = ("resample", "crop", "pad")
-EVENT_ARRAYS = ("onset_peaks", "beats")
+EVENT_ARRAYS = (
+    "onset_peaks",
+    "beats",
+    "beats_bailando",
+    "motion_beats_mint",
+    "motion_beats_bailando",
+)
+ROTATION_RESAMPLERS = {
+    "rotmat": "slerp",
+    "quat": "slerp_quat",
+    "rot6d": "slerp_rot6d",
+    "rot6d_rows": "slerp_rot6d_rows",
+    "axis_angle": "slerp_axis_angle",
+}
 PART_RESAMPLERS = {
     "zeros6": "zeros",
     "motion/rotmat": "slerp",
+    "motion/quat": "slerp_quat",
+    "motion/rot6d": "slerp_rot6d",
+    "motion/rot6d_rows": "slerp_rot6d_rows",
+    "motion/axis_angle": "slerp_axis_angle",
     "motion/trans": "linear",
     "motion/euler": "linear",
-    "audio/*onset_peaks, audio/*beats": "event",
-    "audio/* (other)": "linear",
+    "*onset_peaks, *beats, *beats_bailando, motion/motion_beats_*": "event",
+    "other integer arrays (masks, codes)": "nearest",
+    "every other array": "linear",
 }
 
 
@@ -57,24 +89,38 @@ class ColumnPart:
     start: int
     stop: int
     method: str
+    shape: tuple[int, ...] = ()  # the array's row shape (columns are it flattened, C order)
 
 
-def part_method(kind: str, array: str) -> str:
-    """The resampler of one view part (see :data:`PART_RESAMPLERS`)."""
+def part_method(kind: str, array: str, dtype: np.dtype | None = None) -> str:
+    """The resampler of one view part (see :data:`PART_RESAMPLERS`); ``dtype`` (the stored
+    one) sends integer arrays that are not events to ``nearest``."""
     if kind == "zeros6":
         return "zeros"
-    if kind == "motion":
-        return "slerp" if array == "rotmat" else "linear"
-    return "event" if array.rsplit("/", 1)[-1] in EVENT_ARRAYS else "linear"
+    if array.rsplit("/", 1)[-1] in EVENT_ARRAYS:
+        return "event"
+    if kind == "motion" and array in ROTATION_RESAMPLERS:
+        return ROTATION_RESAMPLERS[array]
+    if dtype is not None and np.issubdtype(dtype, np.integer):
+        return "nearest"
+    return "linear"
 
 
-def column_plan(parts: list[tuple[str, str]], widths: list[int]) -> list[ColumnPart]:
-    """The column plan of a view given its parts (``loader.VIEWS[view]``) and their widths."""
+def column_plan(
+    parts: list[tuple[str, str]],
+    widths: list[int],
+    shapes: list[tuple[int, ...]] | None = None,
+    dtypes: list[np.dtype | None] | None = None,
+) -> list[ColumnPart]:
+    """The column plan of a view given its parts (``views.layouts.spec_parts``), their widths
+    and (optionally) the arrays' row shapes and stored dtypes."""
     plan: list[ColumnPart] = []
     at = 0
-    for (kind, array), width in zip(parts, widths, strict=True):
+    for k, ((kind, array), width) in enumerate(zip(parts, widths, strict=True)):
         name = "zeros6" if kind == "zeros6" else f"{kind}/{array}"
-        plan.append(ColumnPart(name, at, at + width, part_method(kind, array)))
+        shape = shapes[k] if shapes is not None else (width,)
+        dtype = dtypes[k] if dtypes is not None else None
+        plan.append(ColumnPart(name, at, at + width, part_method(kind, array, dtype), shape))
         at += width
     return plan
 
@@ -126,6 +172,38 @@ def _slerp_rotmat(values: np.ndarray, positions: np.ndarray) -> np.ndarray:
     return quat_to_rotmat(resample_quaternions(quat, positions)).reshape(len(positions), width)
 
 
+_ENCODINGS = {
+    "slerp_quat": (lambda q: q, lambda q: q, 4),
+    "slerp_rot6d": (
+        lambda r: orthonormal_rotmat_to_quat(rot6d_to_rotmat(r)),
+        lambda q: rotmat_to_rot6d(quat_to_rotmat(q)),
+        6,
+    ),
+    "slerp_rot6d_rows": (
+        lambda r: orthonormal_rotmat_to_quat(rot6d_rows_to_rotmat(r)),
+        lambda q: rotmat_to_rot6d_rows(quat_to_rotmat(q)),
+        6,
+    ),
+    "slerp_axis_angle": (axis_angle_to_quat, quat_to_axis_angle, 3),
+}
+
+
+def _slerp_encoded(values: np.ndarray, positions: np.ndarray, method: str) -> np.ndarray:
+    """SLERP of rotations stored as quaternions, 6D or axis-angle: decoded to quaternions,
+    interpolated, encoded back (columns come in groups of the encoding's width)."""
+    to_quat, from_quat, size = _ENCODINGS[method]
+    n, width = values.shape
+    if width % size:
+        raise InputError(f"{method} columns must come in {size}s (got {width})")
+    quat = to_quat(values.reshape(n, width // size, size).astype(np.float64))
+    return from_quat(resample_quaternions(quat, positions)).reshape(len(positions), width)
+
+
+def _nearest(values: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    index = np.minimum(np.floor(positions + 0.5).astype(np.int64), values.shape[0] - 1)
+    return values[index]
+
+
 def _events(values: np.ndarray, window_frames: int) -> np.ndarray:
     n = values.shape[0]
     out = np.zeros((window_frames, values.shape[1]), dtype=np.float64)
@@ -149,6 +227,10 @@ def resample_window(x: np.ndarray, plan: list[ColumnPart], window_frames: int) -
             continue
         if part.method == "slerp":
             out[:, part.start : part.stop] = _slerp_rotmat(values, positions)
+        elif part.method in _ENCODINGS:
+            out[:, part.start : part.stop] = _slerp_encoded(values, positions, part.method)
+        elif part.method == "nearest":
+            out[:, part.start : part.stop] = _nearest(values, positions)
         elif part.method == "event":
             out[:, part.start : part.stop] = _events(values, window_frames)
         else:
