@@ -8,6 +8,13 @@ sequence's first motion frame). Two families:
   ``hop_measures`` measures (default ``n_measures``: no overlap). A window whose measures are
   not consecutive numbers with touching frames (a gap in the table) is left out. With
   ``n_measures=1`` these are exactly the windows of :meth:`DanceStore.iter_measures`, in order.
+* **beats** — ``n_beats`` consecutive beats of the beats table (``dancedata segment --tables
+  measures,beats``) every ``hop_beats``: a beat spans from its frame to the next beat's frame,
+  so a window of beats j … j+n−1 covers ``[frame of j, frame of j+n)`` and needs beat j+n in the
+  table (the last beat of a sequence starts no window: its end is not in the sequence).
+* **phrases** — ``n_phrases`` consecutive phrases of the phrases table (``--tables
+  measures,phrases``, ``--phrase-measures``) every ``hop_phrases``, ``[frame_start of the
+  first, frame_stop of the last)``, as measures.
 * **seconds** — sliding windows of ``seconds`` (ChoreoGraph's 1 s / 4 s / 8 s units) every
   ``hop_seconds``: at a sequence's ``fps``, window ``k`` covers
   ``[round(k · hop_seconds · fps), that + round(seconds · fps))`` (round half up; the start is
@@ -37,15 +44,89 @@ if TYPE_CHECKING:
 class WindowSpans:
     """Spans of one dataset, one row per window (arrays of equal length)."""
 
-    kind: str  # "measures" or "seconds"
+    kind: str  # "measures", "beats", "phrases" or "seconds"
     seq_ids: tuple[str, ...]
-    measure: np.ndarray  # (N,) int64 first measure of the window; -1 for "seconds"
+    measure: np.ndarray  # (N,) int64 measure of the window's first frame; -1 for "seconds"
     frame_start: np.ndarray  # (N,) int64 first frame, on the sequence's frame axis
     length: np.ndarray  # (N,) int64 frames
     params: dict[str, Any] = field(default_factory=dict)  # how they were made (recorded)
+    unit: np.ndarray | None = None  # (N,) int64 first beat / phrase number (beats, phrases)
 
     def __len__(self) -> int:
         return len(self.seq_ids)
+
+
+UNIT_TABLES = {"beats": "beat", "phrases": "phrase"}
+"""Window kinds cut from a unit table of ``segment``, with the table's number column."""
+
+
+def _unit_rows(store: SequenceReader, table: str, split: str | None, scheme: str) -> list[dict]:
+    """Rows of ``table`` for the sequences of ``split``; StoreError naming the segment command
+    that writes it when this version lacks it."""
+    from dancedata.errors import StoreError
+
+    if not store.has_table(table):
+        raise StoreError(
+            f"version {store.version} has no {table} table, which {table} windows are cut "
+            f"from: run `dancedata segment {store.path} --tables measures,{table}`"
+            + (" --phrase-measures 4 (or 8)" if table == "phrases" else ""),
+            store.path,
+        )
+    wanted = set(store.seq_ids(split, scheme))
+    return [r for r in store.table(table).to_pylist() if r["seq_id"] in wanted]
+
+
+def unit_spans(
+    store: SequenceReader,
+    kind: str,
+    split: str | None,
+    scheme: str,
+    with_audio: bool,
+    n_units: int = 1,
+    hop_units: int | None = None,
+) -> WindowSpans:
+    """Spans of ``n_units`` consecutive beats or phrases (``kind`` "beats" or "phrases"; see
+    the module docstring), every ``hop_units`` (default ``n_units``)."""
+    if kind not in UNIT_TABLES:
+        raise InputError(f"unit windows are {' or '.join(UNIT_TABLES)} (got {kind!r})")
+    number = UNIT_TABLES[kind]
+    rows = _unit_rows(store, kind, split, scheme)
+    if kind == "beats":  # a beat spans to the next beat of its sequence
+        by_seq: dict[str, list[dict]] = {}
+        for r in rows:
+            by_seq.setdefault(r["seq_id"], []).append(r)
+        spans = []
+        for seq_rows in by_seq.values():
+            seq_rows.sort(key=lambda r: int(r["beat"]))
+            for a, b in zip(seq_rows[:-1], seq_rows[1:], strict=True):
+                if int(b["beat"]) == int(a["beat"]) + 1:
+                    spans.append({**a, "frame_start": a["frame"], "frame_stop": b["frame"]})
+        rows = spans
+    else:
+        rows = [{**r, "measure": r["measure_start"]} for r in rows]
+    if with_audio:
+        available = {s: _frames_available(store, s, True) for s in {r["seq_id"] for r in rows}}
+        rows = [r for r in rows if r["frame_stop"] <= available[r["seq_id"]]]
+    groups = measure_groups(
+        [r["seq_id"] for r in rows],
+        [int(r[number]) for r in rows],
+        [int(r["frame_start"]) for r in rows],
+        [int(r["frame_stop"]) for r in rows],
+        n_units,
+        hop_units,
+    )
+    first = [rows[g[0]] for g in groups]
+    start = np.array([r["frame_start"] for r in first], dtype=np.int64)
+    stop = np.array([rows[g[-1]]["frame_stop"] for g in groups], dtype=np.int64)
+    return WindowSpans(
+        kind=kind,
+        seq_ids=tuple(r["seq_id"] for r in first),
+        measure=np.array([r["measure"] for r in first], dtype=np.int64),
+        frame_start=start,
+        length=stop - start,
+        params={f"n_{kind}": n_units, f"hop_{kind}": n_units if hop_units is None else hop_units},
+        unit=np.array([r[number] for r in first], dtype=np.int64),
+    )
 
 
 def measure_groups(
