@@ -149,9 +149,33 @@ class LengthBucketSampler(Sampler[list[int]]):
         self.epoch += 1
 
 
+class EpochBatches(Sampler[tuple[int, list[int]]]):
+    """A batch sampler whose batches travel with their epoch: yields ``(epoch, indices)``,
+    the epoch read from the wrapped sampler (``SeededShuffleSampler``,
+    ``LengthBucketSampler``) when a pass starts. So per-epoch augmentation draws follow the
+    epoch in persistent data-loader workers too, which never see the training process's
+    ``set_epoch``. ``set_epoch`` is passed on to the wrapped sampler."""
+
+    def __init__(self, batches: Any) -> None:
+        self.batches = batches
+        self._epoch_of = getattr(batches, "sampler", batches)
+
+    def set_epoch(self, epoch: int) -> None:
+        self._epoch_of.set_epoch(epoch)
+
+    def __len__(self) -> int:
+        return len(self.batches)
+
+    def __iter__(self) -> Iterator[tuple[int, list[int]]]:
+        epoch = int(getattr(self._epoch_of, "epoch", 0))
+        for batch in self.batches:
+            yield epoch, list(batch)
+
+
 class BatchReads:
     """A dataset whose items are whole batches: ``reads[indices]`` is ``dataset.batch(indices)``
-    (padded, one copy per window). Used with ``DataLoader(reads, sampler=<batch sampler>,
+    (padded, one copy per window), ``reads[(epoch, indices)]`` the batch of that epoch (see
+    :class:`EpochBatches`). Used with ``DataLoader(reads, sampler=<batch sampler>,
     batch_size=None)``, so workers build batches without a per-item step; in a worker a
     dataset's ``batch_parcel`` (one shared-memory buffer per batch) is used when it has one."""
 
@@ -161,10 +185,14 @@ class BatchReads:
     def __len__(self) -> int:
         return len(self.dataset)
 
-    def __getitem__(self, indices: list[int]) -> Any:
+    def __getitem__(self, indices: Any) -> Any:
+        epoch = None
+        if isinstance(indices, tuple) and len(indices) == 2 and isinstance(indices[1], list):
+            epoch, indices = indices
+        extra = {} if epoch is None else {"epoch": epoch}
         if get_worker_info() is not None and getattr(self.dataset, "batch_parcel", None):
-            return self.dataset.batch_parcel(list(indices), self.multiple_of)  # unpickles as
-        return self.dataset.batch(list(indices), self.multiple_of)  # the same dict
+            return self.dataset.batch_parcel(list(indices), self.multiple_of, **extra)  # as
+        return self.dataset.batch(list(indices), self.multiple_of, **extra)  # the same dict
 
 
 def _as_is(batch: Any) -> Any:
@@ -187,7 +215,9 @@ def training_loader(
     seeded shuffle, or length buckets with ``bucket=True``. Batches are as
     :func:`pad_collate` makes them; without a ``collate_fn`` they are read whole through
     ``dataset.batch`` (:class:`BatchReads`) when the dataset has it. Extra keywords go to
-    DataLoader (e.g. ``pin_memory=True``); workers persist between epochs by default."""
+    DataLoader (e.g. ``pin_memory=True``); workers persist between epochs by default. Read
+    through ``dataset.batch``, each batch carries its epoch (:class:`EpochBatches`), so a
+    dataset's augmentations draw per seed, epoch and index whatever the workers."""
     if num_workers > 0:
         loader_kwargs.setdefault("persistent_workers", True)
     if bucket:
@@ -199,7 +229,7 @@ def training_loader(
     if collate_fn is None and hasattr(dataset, "batch"):
         return DataLoader(
             BatchReads(dataset),
-            sampler=batches,
+            sampler=EpochBatches(batches),
             batch_size=None,
             collate_fn=_as_is,
             num_workers=num_workers,

@@ -31,21 +31,32 @@ long with ``fit="resample"|"crop"|"pad"`` (:mod:`dancedata.window_fit`). ``n_mea
 ``hop_measures`` make windows of several measures; :class:`SecondsDataset` makes sliding
 windows of ``seconds`` every ``hop_seconds`` (:mod:`dancedata.window_spans`).
 
+Any stored arrays, not only the paper views: ``motion=`` / ``audio=`` take a view name, an array
+path or a list of them, side by side in the item (``motion=["motion/quat", "motion/trans"]``,
+``audio="audio/stft_frames"``; ``dataset.columns`` says which columns hold which array). A paper
+view that does not fit the store (``fact_motion_225`` on a 31-joint BVH rig) is refused with the
+reason. :class:`BeatDataset` and :class:`PhraseDataset` cut windows per beat span and per phrase
+(the ``beats`` / ``phrases`` tables of ``dancedata segment --tables measures,beats,phrases``).
+``normalize=True`` (or a list of array paths) applies the version's normalisation table
+(``dancedata stats``) and ``dataset.denormalize(x)`` undoes it; ``augment=("mirror", "yaw")``
+mirrors and turns items, deterministically per ``seed``, epoch (``set_epoch``) and index.
+
 Datasets pickle small and open the store lazily in each data-loader worker (local folders and
 ``s3://`` stores alike), so ``num_workers > 0`` works with fork and spawn.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from dancedata.loader import DanceStore
+from dancedata.views.layouts import ViewSpec
 from dancedata.views.measures import MeasureWindow
-from dancedata.window_dataset import WindowSource, open_window_source
+from dancedata.window_dataset import Augmentation, WindowSource, open_window_source
 
 
 def _torch() -> Any:
@@ -167,31 +178,65 @@ class _WindowDataset:
         """Per view, which columns ``fit="resample"`` resamples how (dancedata.window_fit)."""
         return self.source.resampling
 
+    @property
+    def columns(self) -> dict[str, Any]:
+        """Per item key, which columns hold which array (name, start, stop, row shape)."""
+        return self.source.columns
+
+    def set_epoch(self, epoch: int) -> None:
+        """The epoch the augmentations draw for (``training_loader`` passes each batch's epoch
+        along, so persistent workers follow it too)."""
+        self.source.set_epoch(epoch)
+
+    def normalization(self, key: str = "motion") -> tuple[np.ndarray, np.ndarray]:
+        """(D,) mean and std applied to item ``key`` (see :meth:`WindowSource.normalization`)."""
+        return self.source.normalization(key)
+
+    def denormalize(self, x: Any, key: str = "motion") -> Any:
+        """Undo the normalisation of item ``key`` on (..., D) values: a tensor gives a float32
+        tensor (on its device), an array a float32 array."""
+        if key not in self.source.normalized:
+            return x
+        torch = _torch()
+        if isinstance(x, torch.Tensor):
+            mean, std = (torch.as_tensor(v, dtype=torch.float64) for v in self.normalization(key))
+            from dancedata.compute.normalization import STD_FLOOR
+
+            std = torch.where(std < STD_FLOOR, torch.ones_like(std), std)
+            out = x.detach().to(torch.float64) * std.to(x.device) + mean.to(x.device)
+            return out.to(torch.float32)
+        return self.source.denormalize(x, key)
+
     def preload(self) -> _WindowDataset:
         """Read the views now, so that forked data-loader workers share them (see
         :meth:`WindowSource.preload`); returns the dataset."""
         self.source.preload()
         return self
 
-    def batch(self, indices: list[int], multiple_of: int = 1) -> dict[str, Any]:
+    def batch(
+        self, indices: list[int], multiple_of: int = 1, epoch: int | None = None
+    ) -> dict[str, Any]:
         """Windows ``indices`` as one padded batch of tensors, equal to
         ``pad_collate([self[i] for i in indices])`` but built in one copy per window
         (:meth:`WindowSource.batch`); ``torch_batching.training_loader`` reads through it."""
         torch = _torch()
-        out = self.source.batch(indices, multiple_of)
+        out = self.source.batch(indices, multiple_of, epoch=epoch)
         for key, value in out.items():
             if isinstance(value, np.ndarray):
                 out[key] = torch.from_numpy(value)
         return out
 
-    def batch_parcel(self, indices: list[int], multiple_of: int = 1) -> _BatchParcel:
+    def batch_parcel(
+        self, indices: list[int], multiple_of: int = 1, epoch: int | None = None
+    ) -> _BatchParcel:
         """:meth:`batch` for a data-loader worker to return: motion and audio are written
         straight into one shared-memory buffer and the small arrays travel inside the pickle,
         so handing the batch to the training process costs one shared-memory handle instead
         of one per tensor (seven: each is a round trip to the worker), and it unpickles there
         as the same dict as :meth:`batch` (:meth:`_BatchParcel.unpack` does it in-process)."""
         shared = _SharedBuffer()
-        return _BatchParcel(self.source.batch(indices, multiple_of, alloc=shared), shared)
+        batch = self.source.batch(indices, multiple_of, alloc=shared, epoch=epoch)
+        return _BatchParcel(batch, shared)
 
     def __getitem__(self, index: int) -> dict[str, Any]:
         torch = _torch()
@@ -236,20 +281,24 @@ class MeasureDataset(_WindowDataset):
         store: str | Path | DanceStore,
         split: str | None = None,
         scheme: str = "crossmodal",
-        motion: str | None = "fact_motion_225",
-        audio: str | None = "fact_audio_35",
+        motion: ViewSpec | None = "fact_motion_225",
+        audio: ViewSpec | None = "fact_audio_35",
         version: str | None = None,
         *,
         n_measures: int = 1,
         hop_measures: int | None = None,
         window_frames: int | None = None,
         fit: str = "resample",
+        normalize: bool | Sequence[str] = False,
+        augment: Sequence[Augmentation] | Augmentation | None = None,
+        seed: int = 0,
     ) -> None:
         _torch()
         self.source = open_window_source(
             store, split, scheme, motion, audio, version,
             kind="measures", n_measures=n_measures, hop_measures=hop_measures,
-            window_frames=window_frames, fit=fit,
+            window_frames=window_frames, fit=fit, normalize=normalize, augment=augment,
+            seed=seed,
         )  # fmt: skip
 
 
@@ -265,16 +314,84 @@ class SecondsDataset(_WindowDataset):
         seconds: float = 4.0,
         hop_seconds: float | None = None,
         scheme: str = "crossmodal",
-        motion: str | None = "fact_motion_225",
-        audio: str | None = "fact_audio_35",
+        motion: ViewSpec | None = "fact_motion_225",
+        audio: ViewSpec | None = "fact_audio_35",
         version: str | None = None,
         *,
         window_frames: int | None = None,
         fit: str = "resample",
+        normalize: bool | Sequence[str] = False,
+        augment: Sequence[Augmentation] | Augmentation | None = None,
+        seed: int = 0,
     ) -> None:
         _torch()
         self.source = open_window_source(
             store, split, scheme, motion, audio, version,
             kind="seconds", seconds=seconds, hop_seconds=hop_seconds,
-            window_frames=window_frames, fit=fit,
+            window_frames=window_frames, fit=fit, normalize=normalize, augment=augment,
+            seed=seed,
+        )  # fmt: skip
+
+
+class BeatDataset(_WindowDataset):
+    """Windows of ``n_beats`` consecutive beats every ``hop_beats`` (default ``n_beats``),
+    from the ``beats`` table (``dancedata segment STORE --tables measures,beats``): a beat spans
+    from its frame to the next beat's. Items as :class:`MeasureDataset`, plus ``beat`` (the
+    first beat's number; ``measure`` is its measure)."""
+
+    def __init__(
+        self,
+        store: str | Path | DanceStore,
+        split: str | None = None,
+        scheme: str = "crossmodal",
+        motion: ViewSpec | None = "fact_motion_225",
+        audio: ViewSpec | None = "fact_audio_35",
+        version: str | None = None,
+        *,
+        n_beats: int = 1,
+        hop_beats: int | None = None,
+        window_frames: int | None = None,
+        fit: str = "resample",
+        normalize: bool | Sequence[str] = False,
+        augment: Sequence[Augmentation] | Augmentation | None = None,
+        seed: int = 0,
+    ) -> None:
+        _torch()
+        self.source = open_window_source(
+            store, split, scheme, motion, audio, version,
+            kind="beats", n_units=n_beats, hop_units=hop_beats,
+            window_frames=window_frames, fit=fit, normalize=normalize, augment=augment,
+            seed=seed,
+        )  # fmt: skip
+
+
+class PhraseDataset(_WindowDataset):
+    """Windows of ``n_phrases`` consecutive phrases every ``hop_phrases`` (default
+    ``n_phrases``), from the ``phrases`` table (``dancedata segment STORE --tables
+    measures,phrases --phrase-measures 4``). Items as :class:`MeasureDataset`, plus ``phrase``
+    (the first phrase's number; ``measure`` is its first measure)."""
+
+    def __init__(
+        self,
+        store: str | Path | DanceStore,
+        split: str | None = None,
+        scheme: str = "crossmodal",
+        motion: ViewSpec | None = "fact_motion_225",
+        audio: ViewSpec | None = "fact_audio_35",
+        version: str | None = None,
+        *,
+        n_phrases: int = 1,
+        hop_phrases: int | None = None,
+        window_frames: int | None = None,
+        fit: str = "resample",
+        normalize: bool | Sequence[str] = False,
+        augment: Sequence[Augmentation] | Augmentation | None = None,
+        seed: int = 0,
+    ) -> None:
+        _torch()
+        self.source = open_window_source(
+            store, split, scheme, motion, audio, version,
+            kind="phrases", n_units=n_phrases, hop_units=hop_phrases,
+            window_frames=window_frames, fit=fit, normalize=normalize, augment=augment,
+            seed=seed,
         )  # fmt: skip

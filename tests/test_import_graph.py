@@ -75,6 +75,7 @@ LAYER_OF: dict[str, tuple[str, str]] = {
     "dancedata.seq_ids": ("compute", "the seq_id character set, checked at ingest and on read"),
     "dancedata.batching": ("compute", "length bucketing of windows: pure index arithmetic"),
     "dancedata.window_fit": ("compute", "crop/pad a window to a fixed length: pure arrays"),
+    "dancedata.window_augment": ("compute", "mirror/yaw a window's columns: pure arrays"),
     "dancedata.windows": ("compute", "slices the arrays it is given; never reads a store"),
     "dancedata.cameras": ("compute", "camera sets and projection from parsed camera files"),
     "dancedata.store": ("store", "the versioned Zarr + Parquet store: layout, writer, reader"),
