@@ -29,7 +29,7 @@ import numpy as np
 from dancedata.sequence_reader import SequenceReader
 from dancedata.views import assemble, measures, thesis
 from dancedata.views.cameras import sequence_cameras
-from dancedata.views.layouts import AUDIO_VIEWS, MOTION_VIEWS, VIEWS
+from dancedata.views.layouts import AUDIO_VIEWS, MOTION_VIEWS, VIEWS, ViewSpec
 from dancedata.views.measures import MeasureWindow
 from dancedata.views.normalization import ArrayStats, normalization
 
@@ -51,13 +51,14 @@ class DanceStore(SequenceReader):
     """A committed version of a store, opened for reading (see the module docstring)."""
 
     # -- paper views ---------------------------------------------------------------------------
-    def view(self, seq_id: str, name: str) -> np.ndarray:
+    def view(self, seq_id: str, name: ViewSpec) -> np.ndarray:
         """A derived layout as float32 (frames, D): fact_motion_225, thesis_euler_75,
         fact_audio_35, thesis_audio_22 (CONTRACT.md §3) or thesis_stems_88 (the 22-d
-        per stem: drums, bass, vocals, other; docs/STORE.md)."""
+        per stem: drums, bass, vocals, other; docs/STORE.md); or array paths
+        (``"motion/quat"``, a list of them) side by side, each flattened."""
         return assemble.sequence_view(self, seq_id, name)
 
-    def view_parts(self, name: str) -> list[np.ndarray | None]:
+    def view_parts(self, name: ViewSpec) -> list[np.ndarray | None]:
         """The arrays of view ``name`` over the whole store (see
         :func:`dancedata.views.assemble.view_parts`)."""
         return assemble.view_parts(self, name)
@@ -109,8 +110,8 @@ class DanceStore(SequenceReader):
         self,
         split: str | None = None,
         scheme: str = "crossmodal",
-        motion: str | None = "fact_motion_225",
-        audio: str | None = "fact_audio_35",
+        motion: ViewSpec | None = "fact_motion_225",
+        audio: ViewSpec | None = "fact_audio_35",
     ) -> MeasureWindows:
         """Fast random access to the measures of ``split`` as view windows (a data loader's
         sampler): ``windows[i]`` gives (motion, audio) in a few microseconds. The table and
@@ -121,8 +122,8 @@ class DanceStore(SequenceReader):
         self,
         split: str | None = None,
         scheme: str = "crossmodal",
-        motion: str | None = "fact_motion_225",
-        audio: str | None = "fact_audio_35",
+        motion: ViewSpec | None = "fact_motion_225",
+        audio: ViewSpec | None = "fact_audio_35",
     ) -> Iterator[MeasureWindow]:
         """Every measure of the sequences in ``split``, with the chosen motion and audio views
         sliced to the measure. With an audio view, measures not fully covered by audio are

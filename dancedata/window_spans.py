@@ -90,6 +90,8 @@ def unit_spans(
     if kind not in UNIT_TABLES:
         raise InputError(f"unit windows are {' or '.join(UNIT_TABLES)} (got {kind!r})")
     number = UNIT_TABLES[kind]
+    if n_units < 1 or (hop_units is not None and hop_units < 1):
+        raise InputError(f"n_{kind} and hop_{kind} must be ≥ 1 (got {n_units}, {hop_units})")
     rows = _unit_rows(store, kind, split, scheme)
     if kind == "beats":  # a beat spans to the next beat of its sequence
         by_seq: dict[str, list[dict]] = {}

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dancedata.views.assemble import sequence_view, view_parts
-from dancedata.views.layouts import check_view_names
+from dancedata.views.layouts import ViewSpec, check_view_names
 from dancedata.windows import MeasureWindows
 
 if TYPE_CHECKING:
@@ -39,8 +39,8 @@ def measure_windows(
     store: SequenceReader,
     split: str | None = None,
     scheme: str = "crossmodal",
-    motion: str | None = "fact_motion_225",
-    audio: str | None = "fact_audio_35",
+    motion: ViewSpec | None = "fact_motion_225",
+    audio: ViewSpec | None = "fact_audio_35",
 ) -> MeasureWindows:
     """The measures of ``split`` as :class:`MeasureWindows` over the ``motion`` and ``audio``
     views (either may be None): each window's global frame offsets and the views' arrays."""
@@ -77,8 +77,8 @@ def iter_measures(
     store: SequenceReader,
     split: str | None = None,
     scheme: str = "crossmodal",
-    motion: str | None = "fact_motion_225",
-    audio: str | None = "fact_audio_35",
+    motion: ViewSpec | None = "fact_motion_225",
+    audio: ViewSpec | None = "fact_audio_35",
 ) -> Iterator[MeasureWindow]:
     """Every measure of the sequences in ``split``, with the chosen motion and audio views
     sliced to the measure. With an audio view, measures not fully covered by audio are left
