@@ -455,3 +455,28 @@ def test_augmentation_is_deterministic_per_seed_epoch_and_index_whatever_the_wor
                 i = index[(seq_id, int(y["frame_start"][k]))]
                 want = a.source.item(i, epoch=epoch)["motion"]
                 np.testing.assert_array_equal(y["motion"][k, : len(want)].numpy(), want)
+
+
+@pytest.mark.real_data
+def test_mirrored_bvh_rotations_pose_the_mirrored_skeleton(bvh_store) -> None:
+    """On the real CMU rig: forward kinematics of the mirrored local rotations and translation
+    is the mirror image of the original pose (exact with the rest offsets made symmetric; the
+    rig's own offsets differ from their mirror by 1.5 cm at most)."""
+    from dancedata.compute.fk import forward_kinematics
+
+    spec = ["motion/rotmat", "motion/trans"]
+    ds = MeasureDataset(bvh_store, motion=spec, audio=None, augment=Mirror(p=1.0))
+    rig = store_rig(ds.store)
+    skeleton = ds.store.group_attrs("motion")["skeleton"]
+    offsets = np.asarray(skeleton["offsets"], dtype=np.float64)
+    symmetric = (offsets + offsets[rig.pairs] * [-1, 1, 1]) / 2
+    x, joints = ds.source.raw(3)["motion"].astype(np.float64), len(rig.pairs)
+    m = ds.source.item(3)["motion"].astype(np.float64)
+
+    def pose(rows):
+        rot = rows[:, : 9 * joints].reshape(-1, joints, 3, 3)
+        return forward_kinematics(skeleton["parents"], symmetric, rot, rows[:, 9 * joints :])
+
+    want = pose(x)[:, rig.pairs] * [-1, 1, 1]
+    np.testing.assert_allclose(pose(m), want, atol=1e-5)
+    assert np.abs(pose(m) - pose(x)).max() > 0.5  # the pose really changed sides
