@@ -17,6 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 import dancedata
+from dancedata.compute.rotations import rot6d_to_rotmat
 from dancedata.errors import InputError, StoreError
 from dancedata.window_augment import Mirror, Yaw, mirror_rows, yaw_rows
 from dancedata.window_dataset import store_rig
@@ -408,9 +409,20 @@ def test_yaw_turns_the_root_and_world_vectors_and_keeps_speeds_and_heights(aist_
         turned[:, p.start : p.start + 9].reshape(-1, 3, 3), y.as_matrix() @ r0, atol=2e-6
     )
     np.testing.assert_array_equal(turned[:, p.start + 9 : p.stop], x[:, p.start + 9 : p.stop])
-    for name in ("motion/quat", "motion/rot6d", "motion/axis_angle", "motion/euler"):
+    order = ds.store.zarr("motion/euler").attrs["order"]
+    order = order[0] if isinstance(order, list) else order
+    decode = {  # the root's stored values → matrices, each by its own decoder
+        "motion/rot6d": lambda v: rot6d_to_rotmat(v),
+        "motion/axis_angle": lambda v: Rotation.from_rotvec(v).as_matrix(),
+        "motion/euler": lambda v: Rotation.from_euler(order, v).as_matrix(),
+    }
+    for name, to_matrix in decode.items():
         q = part[name]
-        assert not np.array_equal(turned[:, q.start : q.stop], x[:, q.start : q.stop])
+        width = q.stop - q.start
+        root = turned[:, q.start : q.start + width // q.shape[0]].astype(np.float64)
+        np.testing.assert_allclose(to_matrix(root), y.as_matrix() @ r0, atol=1e-5)
+        rest = slice(q.start + width // q.shape[0], q.stop)
+        np.testing.assert_array_equal(turned[:, rest], x[:, rest])
     q = part["motion/quat"]
     got = Rotation.from_quat(turned[:, q.start : q.start + 4][:, [1, 2, 3, 0]].astype(np.float64))
     np.testing.assert_allclose(got.as_matrix(), y.as_matrix() @ r0, atol=2e-6)
