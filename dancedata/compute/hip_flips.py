@@ -7,12 +7,16 @@ fps, 90° per frame is 2700°/s), so a frame-to-frame root rotation above ``thre
 flip, not motion.
 
 Repair works frame by frame on the already repaired previous frame R'ₜ₋₁: when the step
-Dₜ = Rₜ R'ₜ₋₁⁻¹ exceeds the threshold, a half turn F about Dₜ's own axis is taken as the flip and
-the frame replaced by R'ₜ = F⁻¹ Rₜ. The same F is removed from the following frames while that
-keeps them continuous (the output is still flipped); once the raw frame is continuous with the
-repaired one again (it flipped back), nothing more is changed. Motion inside a flip is kept (only
-the half turn is removed), up to the tilt between Dₜ's axis and the true flip axis, which is of
-the order of one frame's real rotation and constant over the flipped run.
+Rₜ R'ₜ₋₁⁻¹ exceeds the threshold, the frame is a flip. The flip F is estimated against the
+orientation the motion would have reached at constant angular velocity,
+Pₜ = (R'ₜ₋₁ R'ₜ₋₂⁻¹) R'ₜ₋₁ (Pₜ = R'ₜ₋₁ at frame 1): F is the half turn about the axis of
+Dₜ = Rₜ Pₜ⁻¹, and the frame is replaced by R'ₜ = F⁻¹ Rₜ. The same F is removed from the
+following frames while that keeps them continuous (the output is still flipped); once the raw
+frame is continuous with the repaired one again (it flipped back), nothing more is changed.
+Motion inside a flip is kept (only the half turn is removed). A planted half turn is removed
+exactly (to rounding) when the root turns at constant angular velocity around the flip's first
+frame; otherwise the estimated axis tilts by the order of one frame's change of angular
+velocity, the same tilt for the whole flipped run.
 """
 
 from __future__ import annotations
@@ -87,6 +91,7 @@ def repair_root_flips(root_axis_angle: np.ndarray, threshold_deg: float = 90.0) 
     rot = Rotation.from_rotvec(rotvec)
     threshold = np.radians(threshold_deg)
     prev = rot[0]
+    before: Rotation | None = None  # the repaired frame before ``prev`` (constant velocity)
     active: Rotation | None = None  # the half turn being removed while the output is flipped
     frames: list[int] = []
     angles: list[float] = []
@@ -96,15 +101,18 @@ def repair_root_flips(root_axis_angle: np.ndarray, threshold_deg: float = 90.0) 
             current = active.inv() * rot[t]  # still flipped: remove the same half turn
         elif raw_step <= threshold:
             active, current = None, rot[t]  # flipped back, or never flipped
-        else:  # a new flip: a half turn about the step's own axis
-            step = rot[t] * prev.inv()
+        else:  # a new flip: a half turn about the axis of the step from the prediction
+            predicted = prev if before is None else prev * before.inv() * prev
+            step = rot[t] * predicted.inv()
+            if step.magnitude() < 1e-12:  # (cannot happen above the threshold; guard anyway)
+                step = rot[t] * prev.inv()
             active = Rotation.from_rotvec(np.pi * step.as_rotvec() / step.magnitude())
             current = active.inv() * rot[t]
         if active is not None:
             out[t] = current.as_rotvec()
             frames.append(t)
             angles.append(float(np.degrees(raw_step)))
-        prev = current
+        before, prev = prev, current
     return FlipRepair(
         out, np.asarray(frames, dtype=np.int64), np.asarray(angles), float(threshold_deg)
     )

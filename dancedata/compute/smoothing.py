@@ -66,3 +66,25 @@ def smooth_euler(
     unwrapped = np.unwrap(np.asarray(euler_rad, dtype=np.float64), axis=0)
     smooth = butterworth_lowpass(unwrapped, fps, cutoff_hz, order)
     return (smooth + np.pi) % (2 * np.pi) - np.pi if wrap else smooth
+
+
+def smooth_axis_angle(
+    axis_angle: np.ndarray, fps: float, cutoff_hz: float, order: int = 2
+) -> np.ndarray:
+    """Low-pass (F, ..., 3) joint rotations given as axis-angle (radians): converted to unit
+    quaternions (wxyz), smoothed by :func:`smooth_quaternions` (sign-continuous over time,
+    per component, renormalised), converted back (angles in [0, π])."""
+    from dancedata.compute.rotations import axis_angle_to_quat, quat_to_axis_angle
+
+    quat = axis_angle_to_quat(np.asarray(axis_angle, dtype=np.float64))
+    return quat_to_axis_angle(smooth_quaternions(quat, fps, cutoff_hz, order))
+
+
+def butterworth_gain(freq_hz: np.ndarray, fps: float, cutoff_hz: float, order: int) -> np.ndarray:
+    """Closed-form magnitude response of :func:`butterworth_lowpass` (forward and backward):
+    |H|² of the digital Butterworth filter made by the bilinear transform,
+    1 / (1 + (tan(π f / fps) / tan(π f_c / fps))^(2·order)); 1/2 at the cutoff."""
+    ratio = np.tan(np.pi * np.asarray(freq_hz, dtype=np.float64) / fps) / np.tan(
+        np.pi * cutoff_hz / fps
+    )
+    return 1.0 / (1.0 + ratio ** (2 * order))
