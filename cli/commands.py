@@ -10,6 +10,7 @@ from dancedata.cli import (  # noqa: F401
     export_bvh,
     ingest,
     ingest_bvh,
+    ingest_generated,
     ingest_music,
     ingest_video,
     inspect,

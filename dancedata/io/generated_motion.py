@@ -10,6 +10,10 @@ A folder of generated motion holds one file per sequence, named by sequence id
   (F, 72) or (F, 24, 3) axis-angle (rad) with ``smpl_trans`` (F, 3), divided by ``smpl_scaling``
   when present (as AIST++ stores it). EDGE also writes ``full_pose`` (F, 24, 3) joint
   positions, which are kept alongside.
+* ``rotations`` — any rig's joint rotations in the reference rig's joint order, with the root
+  translation (F, 3) in metres under ``trans``: ``axis_angle`` (F, J, 3) radians or ``quat``
+  (F, J, 4) quaternions wxyz (not necessarily unit), in an ``.npz`` or a pickle (a model
+  trained on a BVH store's ``motion/quat`` writes these).
 * ``positions`` — joint positions (F, J, 3) in metres: a ``.npy`` array, or ``positions`` /
   ``full_pose`` / ``pred_position`` (F, J·3 or J, 3) in a pickle or ``.npz``.
 
@@ -55,11 +59,14 @@ class GeneratedMotion:
     """The arrays of one generated sequence (float64), as found in the file.
 
     Attributes:
-        layout: ``fact225``, ``smpl`` or ``positions``.
+        layout: ``fact225``, ``smpl``, ``rotations`` or ``positions``.
         path: the file read.
         fact_rows: (F, 225) FACT rows (``fact225``), else None.
-        axis_angle: (F, 24, 3) SMPL axis-angle in rad (``smpl``), else None.
-        trans: (F, 3) root translation in metres (``smpl``), else None.
+        axis_angle: (F, 24, 3) SMPL axis-angle in rad (``smpl``), (F, J, 3) (``rotations``
+            given as axis-angle), else None.
+        quat: (F, J, 4) wxyz quaternions as found (``rotations`` given as quaternions), else
+            None.
+        trans: (F, 3) root translation in metres (``smpl``, ``rotations``), else None.
         positions: (F, J, 3) joint positions in metres when the file holds them, else None.
     """
 
@@ -69,10 +76,11 @@ class GeneratedMotion:
     axis_angle: np.ndarray | None = None
     trans: np.ndarray | None = None
     positions: np.ndarray | None = None
+    quat: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
-        for array in (self.fact_rows, self.axis_angle, self.positions):
+        for array in (self.fact_rows, self.axis_angle, self.quat, self.positions):
             if array is not None:
                 return int(array.shape[0])
         return 0
@@ -334,6 +342,30 @@ def _fact_rows(name: str, value: np.ndarray, path: Path) -> np.ndarray:
     return rows
 
 
+def _rig_rotations(
+    data: dict[str, np.ndarray], positions: np.ndarray | None, path: Path
+) -> GeneratedMotion:
+    """The ``rotations`` layout: ``axis_angle`` (F, J, 3) or ``quat`` (F, J, 4) + ``trans``."""
+    key, width = ("axis_angle", 3) if "axis_angle" in data else ("quat", 4)
+    rotations = _numbers(key, data[key], path)
+    if rotations.ndim == 2 and rotations.shape[1] % width == 0:
+        rotations = rotations.reshape(rotations.shape[0], -1, width)
+    if rotations.ndim != 3 or rotations.shape[2] != width:
+        raise InputError(f"{key} must be (frames, joints, {width}), got {rotations.shape}", path)
+    if key == "quat" and np.any(np.linalg.norm(rotations, axis=-1) < 1e-8):
+        raise InputError("quat holds a zero quaternion (no rotation)", path)
+    trans = _numbers("trans", data["trans"], path)
+    if trans.shape != (rotations.shape[0], 3):
+        raise InputError(
+            f"trans must be ({rotations.shape[0]}, 3) like {key}, got {trans.shape}", path
+        )
+    if key == "quat":
+        return GeneratedMotion("rotations", str(path), quat=rotations, trans=trans,
+                               positions=positions)  # fmt: skip
+    return GeneratedMotion("rotations", str(path), axis_angle=rotations, trans=trans,
+                           positions=positions)  # fmt: skip
+
+
 def read_generated_motion(path: str | Path, max_frames: int | None = None) -> GeneratedMotion:
     """Read one file and recognise its layout (module docstring); InputError for anything
     else, naming the file and what was found. ``max_frames`` (see
@@ -366,6 +398,8 @@ def read_generated_motion(path: str | Path, max_frames: int | None = None) -> Ge
         return GeneratedMotion(
             "smpl", str(path), axis_angle=poses, trans=trans, positions=positions
         )
+    if "trans" in data and ("axis_angle" in data or "quat" in data):
+        return _rig_rotations(data, positions, path)
     if "pred_motion" in data and "pred_trans" in data:  # mint's legacy result pickles
         motion = _numbers("pred_motion", data["pred_motion"], path)
         motion = motion.reshape(motion.shape[0], -1)
@@ -392,6 +426,6 @@ def read_generated_motion(path: str | Path, max_frames: int | None = None) -> Ge
     found = {k: tuple(v.shape) for k, v in data.items()}
     raise InputError(
         f"unknown generated-motion layout (found {found}): expected (F, 225) FACT rows, "
-        "smpl_poses + smpl_trans, or (F, J, 3) joint positions",
+        "smpl_poses + smpl_trans, axis_angle or quat + trans, or (F, J, 3) joint positions",
         path,
     )

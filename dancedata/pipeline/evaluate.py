@@ -227,10 +227,20 @@ def _gt_side(
 def _gen_from_store(gen: DanceStore, seq_id: str, model: Any) -> dict[str, Any]:
     if seq_id not in gen.seq_ids():
         raise InputError(f"no sequence {seq_id} in the generated store", gen.path)
-    aa = np.asarray(gen.motion(seq_id, "axis_angle"), dtype=np.float64)
-    trans = np.asarray(gen.motion(seq_id, "trans"), dtype=np.float64)
-    positions = None
-    if model is None and "motion/positions" in gen.array_names():
+    names = gen.array_names()
+    aa = trans = positions = None
+    if "motion/axis_angle" in names and "motion/trans" in names:
+        aa = np.asarray(gen.motion(seq_id, "axis_angle"), dtype=np.float64)
+        trans = np.asarray(gen.motion(seq_id, "trans"), dtype=np.float64)
+    elif "motion/positions" not in names:
+        raise InputError(
+            "the generated store holds neither rotations (motion/axis_angle + motion/trans) "
+            "nor joint positions (motion/positions)",
+            gen.path,
+        )
+    # A store of generated joint positions (``ingest generated`` of a positions layout) is
+    # scored on its positions, as a folder of position files is.
+    if (model is None or aa is None) and "motion/positions" in names:
         positions = np.asarray(gen.motion(seq_id, "positions"), dtype=np.float64)
     return {
         "layout": "store",
