@@ -115,8 +115,12 @@ def test_every_layout_comes_back_as_the_reference(ref: Path, tmp_path: Path, lay
     manifest = gen.manifest
     assert manifest["config"]["like"]["version"] == gt.version
     assert manifest["counts"]["layouts"] == {
-        {"fact_npy": "fact225", "smpl_pkl": "smpl", "edge_pkl": "smpl", "quat_npz": "rotations"}
-        .get(layout, "positions"): 2
+        {
+            "fact_npy": "fact225",
+            "smpl_pkl": "smpl",
+            "edge_pkl": "smpl",
+            "quat_npz": "rotations",
+        }.get(layout, "positions"): 2
     }
     run_cli("validate", str(store))
 
@@ -133,7 +137,7 @@ def test_cli_end_to_end_smoothed_and_hip_repaired(ref: Path, tmp_path: Path) -> 
     motion = _motion(ref)
     first = sorted(motion)[0]
     spans = [(40, 52), (200, 203)]
-    flipped = {s: (_flip(aa, spans) if s == first else aa, t, p) for s, (aa, t, p) in motion.items()}
+    flipped = {s: (_flip(m[0], spans) if s == first else m[0], *m[1:]) for s, m in motion.items()}
     write_layout(tmp_path / "gen", flipped, "smpl_pkl")
     store = tmp_path / "gen-store"
     args = ["ingest", "generated", str(tmp_path / "gen"), "--store", str(store), "--like", str(ref)]
@@ -211,12 +215,12 @@ def test_generated_fps_is_resampled_to_the_reference(ref: Path, tmp_path: Path) 
     result = ingest_generated(store, tmp_path / "gen", options)
     assert result.counts["resampled"] == 2
     gen = dancedata.open_store(store)
-    for s, (aa, trans, _) in motion.items():
+    for s, (_, trans, _) in motion.items():
         stored = np.asarray(gen.motion(s, "trans"))
         frames = len(stored)
         assert frames in (2 * len(half[s][0]) - 1, 2 * len(half[s][0]))
         # the 30 fps frames fall on the even 60 fps frames
-        np.testing.assert_allclose(stored[::2], trans[: frames : 2], atol=1e-5)
+        np.testing.assert_allclose(stored[::2], trans[:frames:2], atol=1e-5)
 
 
 # -- hostile and wrong inputs ---------------------------------------------------------------
@@ -280,11 +284,10 @@ def test_hostile_inputs_one_error_and_nothing_written(ref: Path, tmp_path: Path)
     np.save(gen / f"{first}.npy", np.zeros((n, 17, 3)))
     assert "17 joints" in _refused(tmp_path, ref, gen)
     # an .npz bomb claiming more than it holds
-    with zipfile.ZipFile(gen / f"{first}.npz", "w") as zf:
-        with zf.open("quat.npy", "w") as member:
-            np.lib.format.write_array_header_1_0(
-                member, {"descr": "<f8", "fortran_order": False, "shape": (10**7, 24, 4)}
-            )
+    with zipfile.ZipFile(gen / f"{first}.npz", "w") as zf, zf.open("quat.npy", "w") as member:
+        np.lib.format.write_array_header_1_0(
+            member, {"descr": "<f8", "fortran_order": False, "shape": (10**7, 24, 4)}
+        )
     os.unlink(gen / f"{first}.npy")
     assert "claims" in _refused(tmp_path, ref, gen)
     os.unlink(gen / f"{first}.npz")

@@ -55,7 +55,7 @@ def test_no_lag_on_a_pulse():
     x[300] = 1.0
     y = butterworth_lowpass(x, FPS, 3.0, 2)
     assert int(np.argmax(y)) == 300
-    np.testing.assert_allclose(y[300 - 50 : 300], y[301 : 351][::-1], atol=1e-12)  # symmetric
+    np.testing.assert_allclose(y[300 - 50 : 300], y[301:351][::-1], atol=1e-12)  # symmetric
 
 
 def _yaw_rotvecs(angle: np.ndarray) -> np.ndarray:
