@@ -479,6 +479,46 @@ def too_many_frames(work: Path, store: Path) -> list[Command]:
     return [evaluate(store, gen, work / "out", expect=r"frames")]
 
 
+def ingest_generated(gen: Path, like: Path, out: Path, **kw: Any) -> Command:
+    """``ingest generated`` of ``gen`` into a new store ``out`` (its output folder)."""
+    argv = ["ingest", "generated", str(gen), "--store", str(out), "--like", str(like), "-q"]
+    return Command(argv, output=out, **kw)
+
+
+@hostile_case("generated", note="ingest generated: a sparse .npy declaring 10.8 GB")
+def ingest_sparse_npy(work: Path, store: Path) -> list[Command]:
+    gen, seq = _gen_folder(work, store)
+    _sparse_npy(gen / f"{seq}.npy", (6_000_000, 225))
+    return [ingest_generated(gen, store, work / "gstore", expect=r"frames declared", json=True)]
+
+
+@hostile_case("generated", note="ingest generated: a file name that is no sequence id")
+def ingest_traversal_name(work: Path, store: Path) -> list[Command]:
+    gen, _ = _gen_folder(work, store)
+    np.save(gen / "..%2f..%2fetc.npy", np.zeros((10, 225)))
+    return [ingest_generated(gen, store, work / "gstore", expect=r"not a plain name", json=True)]
+
+
+@hostile_case("generated", note="ingest generated: a file of the wrong shape, a foreign id")
+def ingest_wrong_shape(work: Path, store: Path) -> list[Command]:
+    gen, seq = _gen_folder(work, store)
+    np.save(gen / f"{seq}.npy", np.zeros((n_frames(store, seq), 7)))
+    other = work / "gen2"
+    other.mkdir()
+    np.save(other / "gZZ_not_in_store.npy", np.zeros((10, 225)))
+    return [
+        ingest_generated(gen, store, work / "gstore", expect=r"unknown generated-motion layout"),
+        ingest_generated(other, store, work / "gstore", expect=r"no sequence 'gZZ_not_in_store'"),
+    ]
+
+
+@hostile_case("generated", note="ingest generated: a symbolic link to a file outside")
+def ingest_symlink(work: Path, store: Path) -> list[Command]:
+    gen, seq = _gen_folder(work, store)
+    os.symlink("/etc/hostname", gen / f"{seq}.npy")
+    return [ingest_generated(gen, store, work / "gstore", expect=r"not a regular file")]
+
+
 # -- paths and processes -----------------------------------------------------------------------
 
 
