@@ -276,7 +276,14 @@ def test_hostile_inputs_one_error_and_nothing_written(ref: Path, tmp_path: Path)
             fh, {"descr": "<f8", "fortran_order": False, "shape": (5_000_000, 225)}
         )
         fh.truncate(fh.tell() + 5_000_000 * 225 * 8)
-    assert "frames declared" in _refused(tmp_path, ref, gen, json_too=True)
+    assert "at most" in _refused(tmp_path, ref, gen, json_too=True)  # refused before hashing
+    # a declared size far beyond the file's frames, in a small file
+    with (gen / f"{first}.npy").open("wb") as fh:
+        np.lib.format.write_array_header_1_0(
+            fh, {"descr": "<f8", "fortran_order": False, "shape": (5_000_000, 225)}
+        )
+        fh.write(bytes(4096))
+    assert "frames declared" in _refused(tmp_path, ref, gen)
     # a file of the wrong shape
     np.save(gen / f"{first}.npy", np.zeros((n, 7)))
     assert "unknown generated-motion layout" in _refused(tmp_path, ref, gen)

@@ -53,7 +53,11 @@ from dancedata.ingest.source import (
     Source,
     StoredArray,
 )
-from dancedata.io.generated_motion import GENERATED_SUFFIXES, generated_frame_limit
+from dancedata.io.generated_motion import (
+    GENERATED_SUFFIXES,
+    MAX_ROW_VALUES,
+    generated_frame_limit,
+)
 from dancedata.seq_ids import check_seq_id
 from dancedata.store.command_result import CommandResult
 
@@ -301,6 +305,19 @@ def _seq_id_of(name: str, known: dict[str, dict[str, Any]]) -> str | None:
     return stem
 
 
+def _check_file_size(path: Path, mode: int, max_frames: int) -> None:
+    """Refuse a file larger than any accepted motion of at most ``max_frames`` frames can be
+    (1024 values a frame of at most 16 bytes, plus 1 MiB of headers), before it is hashed."""
+    size = path.stat().st_size
+    most = max_frames * MAX_ROW_VALUES * 16 + (1 << 20)
+    if size > most:
+        raise InputError(
+            f"{size} bytes, more than a motion of at most {max_frames} frames can hold "
+            f"({most} bytes: twice the reference sequence's frames + 1200)",
+            path,
+        )
+
+
 def _resolved(path: str | Path) -> Path | None:
     try:
         return Path(path).resolve()
@@ -375,12 +392,13 @@ class GeneratedSource(Source):
                         f"two files for sequence {seq_id} ({claimed[seq_id].name} and {name})",
                         path,
                     )
-                sha = checksums.sha(path)
+                limit = generated_frame_limit(int(row["n_frames"]), o.generated_fps, ref.fps)
+                _check_file_size(path, mode, limit)
+                sha = checksums.sha(path)  # (after the size check: hashing reads it all)
             except InputError as exc:
                 skips.fail_or_skip(exc, path)
                 continue
             claimed[seq_id] = path
-            limit = generated_frame_limit(int(row["n_frames"]), o.generated_fps, ref.fps)
             item = _FileItem(str(path), sha, seq_id, limit, self.settings)
             tasks.append(ReadTask(str(path), item))
             keys.append(f"generated {seq_id} {sha}")

@@ -489,7 +489,17 @@ def ingest_generated(gen: Path, like: Path, out: Path, **kw: Any) -> Command:
 def ingest_sparse_npy(work: Path, store: Path) -> list[Command]:
     gen, seq = _gen_folder(work, store)
     _sparse_npy(gen / f"{seq}.npy", (6_000_000, 225))
-    return [ingest_generated(gen, store, work / "gstore", expect=r"frames declared", json=True)]
+    small = work / "gen-small"
+    small.mkdir()
+    with (small / f"{seq}.npy").open("wb") as fh:  # the same claim in a 4 kB file
+        np.lib.format.write_array_header_1_0(
+            fh, {"descr": "<f8", "fortran_order": False, "shape": (6_000_000, 225)}
+        )
+        fh.write(bytes(4096))
+    return [
+        ingest_generated(gen, store, work / "gstore", expect=r"at most \d+ frames", json=True),
+        ingest_generated(small, store, work / "gstore", expect=r"frames declared", json=True),
+    ]
 
 
 @hostile_case("generated", note="ingest generated: a file name that is no sequence id")
