@@ -237,7 +237,8 @@ def _refused(tmp_path: Path, ref: Path, gen: Path, *extra: str, json_too: bool =
         assert proc.returncode == 1, proc.stdout + proc.stderr
         assert "Traceback" not in proc.stderr + proc.stdout
         if json_mode:
-            error = json.loads(proc.stdout)["error"]
+            record = json.loads(proc.stdout)
+            assert record["error"] in error and record["exit_code"] == 1
         else:
             lines = [line for line in proc.stderr.splitlines() if line.startswith("error")]
             assert len(lines) == 1, proc.stderr
