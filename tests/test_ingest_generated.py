@@ -231,6 +231,7 @@ def _refused(tmp_path: Path, ref: Path, gen: Path, *extra: str, json_too: bool =
     under --json); nothing written beside the store."""
     before = sorted(p for p in tmp_path.rglob("*") if "store" not in p.parts)
     store = tmp_path / "store"
+    error = ""
     for json_mode in (False, True) if json_too else (False,):
         argv = ["ingest", "generated", str(gen), "--store", str(store), "--like", str(ref)]
         proc = run_cli(*argv, *extra, *(["--json"] if json_mode else []), check=False)
