@@ -13,6 +13,18 @@ Tolerances, per array (:data:`TOLERANCE`, absolute, on the arrays as stored):
   of that changes a rounding, so the outputs are expected to be bit-identical. The test allows
   float32 rounding of the stored values (4 ulp of each array's largest magnitude), so that a
   BLAS build that orders a product's sums differently is not an error; anything above that is.
+  This holds for the FACT arrays (``onset_env``, ``mfcc``, ``chroma_cens``), which no later
+  change touched.
+* arrays computed from the offline stems (``stems/*/onset_env``, ``stems/*/mfcc``,
+  ``nmfd_drums``; :data:`RELATIVE`): 1e-5 of the array's largest magnitude. The stem masks and
+  the inverse STFTs of the masked spectra now run in float32 instead of float64 (offline
+  algorithm revision 2), so every stem sample differs from the old one by float32 rounding and
+  the features by its propagation through an STFT, a log-mel spectrogram and (for the onset
+  envelopes) a difference of neighbouring frames: measured at most 3.2e-6 of the maximum
+  (``stems/bass/onset_env`` of Vibe Ace; MFCCs and NMFD at most 4e-7). 1e-5 leaves room for
+  another BLAS/FFT build and is still 100× below any change of the algorithm (a wrong mask or
+  a changed neighbour set moves these arrays by percent); the stems' onset peaks must stay
+  identical, which is the sharper check.
 """
 
 from __future__ import annotations
@@ -28,6 +40,7 @@ from tests.data.audio_reference import make_reference as ref
 REFERENCE = Path(__file__).resolve().parent / "data" / "audio_reference" / "reference.npz"
 EXACT = ("onset_peaks", "beats")
 ULPS = 4
+RELATIVE: dict[str, float] = {"stems/": 1e-5, "nmfd_drums": 1e-5}  # prefix → share of the max
 
 
 def stored() -> dict[str, dict[str, np.ndarray]]:
@@ -40,11 +53,14 @@ def stored() -> dict[str, dict[str, np.ndarray]]:
 
 
 def tolerance(name: str, expected: np.ndarray) -> float:
-    """Absolute tolerance of array ``name``: 0 for one-hot arrays, else 4 float32 ulp of its
-    largest magnitude."""
+    """Absolute tolerance of array ``name``: 0 for one-hot arrays, the :data:`RELATIVE` share
+    of its largest magnitude for arrays of the stems, else 4 float32 ulp of that magnitude."""
     if name.split("/")[-1] in EXACT:
         return 0.0
     scale = float(np.max(np.abs(expected))) if expected.size else 0.0
+    for prefix, share in RELATIVE.items():
+        if name.startswith(prefix):
+            return share * scale
     return ULPS * float(np.spacing(np.float32(scale)))
 
 

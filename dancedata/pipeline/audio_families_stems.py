@@ -89,6 +89,18 @@ def separation_options(settings: AudioSettings) -> dict[str, Any]:
     return {}
 
 
+# Revision of the offline separation's arithmetic, recorded in the stem families' config (so in
+# the manifest, the fingerprint and the feature-cache key): features cached by an older
+# revision are recomputed. 2: float32 masks and inverse STFTs (outputs within float32
+# rounding of revision 1, see tests/test_audio_reference.py).
+OFFLINE_ALGORITHM = 2
+
+
+def algorithm_config(settings: AudioSettings) -> dict[str, Any]:
+    """``{"offline_algorithm": OFFLINE_ALGORITHM}`` for the offline backend, else nothing."""
+    return {"offline_algorithm": OFFLINE_ALGORITHM} if settings.stems == "offline" else {}
+
+
 def stem_backend_config(settings: AudioSettings) -> dict[str, Any]:
     """Every setting of the stem backend (see :func:`dancedata.compute.stems.backend_config`);
     for ``openunmix`` the weights folder is replaced by the weight files' names and sha256."""
@@ -286,8 +298,10 @@ class StemFeaturesFamily(AudioFamily):
         }
 
     def config(self, settings: AudioSettings | None = None) -> dict[str, Any]:
+        settings = settings or _DEFAULT
         return {
-            "stem_backend": stem_backend_config(settings or _DEFAULT),
+            "stem_backend": stem_backend_config(settings),
+            **algorithm_config(settings),
             "features": list(STEM_FEATURE_NAMES),
         }
 
@@ -362,6 +376,7 @@ class NmfdDrumsFamily(AudioFamily):
         settings = settings or _DEFAULT
         return {
             "stem_backend": stem_backend_config(settings),
+            **algorithm_config(settings),
             "components": list(NMFD_COMPONENTS),
             "template_frames": settings.nmfd_template_frames,
             "iterations": settings.nmfd_iterations,

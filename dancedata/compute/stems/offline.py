@@ -202,14 +202,20 @@ def stem_masks(
     """
     import librosa
 
-    percussive = percussive_mask(mag, hpss_kernel).astype(np.float64)
+    # float32 throughout (the masks, and so the masked spectra and their inverse STFTs, which
+    # float64 masks would promote to complex128): half the memory traffic and FFT work, and
+    # the stems change only by float32 rounding.
+    percussive = percussive_mask(np.asarray(mag, dtype=np.float32), hpss_kernel)
     # librosa leaves bins where both median filters are 0 at (0, 0); give them to the harmonic
     # side so that the masks are an exact partition of unity.
-    harmonic = 1.0 - percussive
+    harmonic = np.float32(1.0) - percussive
 
     freqs = librosa.fft_frequencies(sr=sr, n_fft=n_fft)
-    low = lowpass_weight(freqs, bass_cutoff_hz, crossover_order)
-    band = (1.0 - low) * lowpass_weight(freqs, vocal_high_hz, crossover_order)
+    low64 = lowpass_weight(freqs, bass_cutoff_hz, crossover_order)
+    band = ((1.0 - low64) * lowpass_weight(freqs, vocal_high_hz, crossover_order)).astype(
+        np.float32
+    )
+    low = low64.astype(np.float32)
 
     width = max(1, int(round(repeat_seconds * sr / hop_length)))
     novel = repetition_foreground(mag * harmonic, width, vocal_margin, repeat_neighbours)
@@ -217,7 +223,12 @@ def stem_masks(
     bass = harmonic * low[:, None]
     vocals = harmonic * band[:, None] * novel
     other = harmonic - bass - vocals
-    return {"drums": percussive, "bass": bass, "vocals": vocals, "other": np.clip(other, 0, None)}
+    return {
+        "drums": percussive,
+        "bass": bass,
+        "vocals": vocals,
+        "other": np.clip(other, np.float32(0), None),
+    }
 
 
 def separate(
