@@ -17,7 +17,7 @@ import typer
 
 from dancedata.pipeline.family_settings import CliSetting, cli_settings
 
-_TYPES: dict[str, type] = {"str": str, "int": int, "float": float, "path": Path}
+_TYPES: dict[str, type] = {"str": str, "int": int, "float": float, "bool": bool, "path": Path}
 
 
 def settings_option(setting: CliSetting) -> Any:

@@ -13,6 +13,8 @@ array function, vectorised over measures; reading a store and writing results li
 - :mod:`dancedata.experiments.reconstruction_error` — the MSE of §4.1 (one named convention).
 - :mod:`dancedata.experiments.metrics` — every metric of §4 (MSE in all its conventions, FID_k /
   FID_g, diversity, the beat scores, FPD / FMD), each returning value + convention + sample size.
+- :mod:`dancedata.experiments.metric_registry` — the registered metrics (one
+  ``metric_<name>.py`` module each): what each needs, its settings, its ``compute``.
 - :mod:`dancedata.experiments.evaluate` — scoring generated motion against ground truth per
   sequence and as sets, with every unscored sequence and its reason
   (:mod:`dancedata.experiments.evaluate_inputs`: the conversions it needs).

@@ -39,11 +39,11 @@ from typing import Any
 
 from dancedata.errors import InputError
 from dancedata.experiments.keyframes import KeyframeParams, canonical_strategy
+from dancedata.experiments.metric_registry import experiment_metric_names
 
 # In-betweeners of spec §3 by row-key name; transformer:* rows need a trained model (class M).
 INBETWEENERS: tuple[str, ...] = ("linear_slerp", "bezier_oracle", "bezier_train_mean")
 TRANSFORMER_PREFIX = "transformer_"
-METRICS: tuple[str, ...] = ("mse", "fid_g", "fid_k", "pfc")
 GENRES_9: tuple[str, ...] = ("gBR", "gHO", "gJS", "gKR", "gLH", "gLO", "gMH", "gPO", "gWA")
 
 DEFAULTS: dict[str, Any] = {
@@ -397,9 +397,10 @@ def build_config(raw: dict[str, Any], source: str = "<config>",
     split["eval"] = [str(s) for s in _as_list(split["eval"])]
     split["exclude_genres"] = sorted(str(g) for g in _as_list(split["exclude_genres"]))
     names = [str(m) for m in _as_list(data["metrics"]["names"])]
-    bad = [m for m in names if m not in METRICS]
+    known = experiment_metric_names()
+    bad = [m for m in names if m not in known]
     if bad:
-        raise InputError(f"unknown metric(s) {bad}; the runner computes {list(METRICS)}", source)
+        raise InputError(f"unknown metric(s) {bad}; the runner computes {list(known)}", source)
     data["metrics"]["names"] = names
     pfc_fps, clip = data["metrics"]["pfc_fps"], data["metrics"]["pfc_clip_frames"]
     if not isinstance(pfc_fps, int | float) or pfc_fps <= 0 or abs(60.0 / pfc_fps % 1) > 1e-9:

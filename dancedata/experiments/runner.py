@@ -2,7 +2,10 @@
 
 For every row key (keyframe strategy + in-betweener) and every N of the config, the runner
 selects keyframes in every complete measure of the eval split, reconstructs the in-betweens
-(vectorised over all measures at once), and scores them against the stored ground truth:
+(vectorised over all measures at once), and scores them against the stored ground truth with
+every registered metric that has ``experiment_outputs``
+(:mod:`dancedata.experiments.metric_registry`; each scores a :class:`ReconstructionCell` in
+its ``score_reconstructions``):
 
 * ``mse`` — :func:`dancedata.experiments.metrics.mse` over the measures (space, wrap, reduce
   from the config);
@@ -44,7 +47,6 @@ from dancedata.errors import InputError
 from dancedata.experiments.bezier import BezierTrainMean, bezier_fit, bezier_reconstruction
 from dancedata.experiments.config import ExperimentConfig, RowKey
 from dancedata.experiments.inbetween import Reconstruction, linear_slerp, segment_map
-from dancedata.experiments.metrics import fid, mse
 from dancedata.experiments.results_schema import results_table
 from dancedata.experiments.runner_data import (
     SplitData,
@@ -146,20 +148,6 @@ def _evaluated(data: SplitData, rows: np.ndarray, rec: Reconstruction) -> Evalua
     return Evaluated(rows, data.x75[seg.frame], rec.euler75(), rec, seg.frame, bounds)
 
 
-def _score_mse(ev: Evaluated, data: SplitData, config: ExperimentConfig) -> dict[str, Any]:
-    m = config.data["metrics"]
-    groups = [data.sequences[i]["seq_id"] for i in data.measure_seq[ev.rows].tolist()]
-    result = mse(
-        _split_units(ev.truth75, ev.unit_bounds),
-        _split_units(ev.recon75, ev.unit_bounds),
-        space=m["mse_space"],
-        wrap=m["mse_wrap"],
-        reduce=m["mse_reduce"],
-        groups=groups,
-    )
-    return result.as_dict()
-
-
 def _fid_units(ev: Evaluated, data: SplitData, unit: str) -> np.ndarray:
     """Offsets of the FID units in the evaluated rows: one per measure, or per sequence
     (consecutive measures of one sequence concatenated)."""
@@ -170,51 +158,90 @@ def _fid_units(ev: Evaluated, data: SplitData, unit: str) -> np.ndarray:
     return np.concatenate([[0], ev.unit_bounds[change], [ev.unit_bounds[-1]]])
 
 
-def _score_fid(ev: Evaluated, data: SplitData, config: ExperimentConfig, skeleton: Any,
-               kinds: list[str]) -> dict[str, dict[str, Any]]:  # fmt: skip
-    m = config.data["metrics"]
-    rec = ev.reconstruction
-    assert rec is not None and data.axis_angle is not None
-    fake = skeleton.positions(rec.axis_angle(), rec.trans)
-    real = skeleton.positions(data.axis_angle[ev.frame], data.trans[ev.frame])
-    bounds = _fid_units(ev, data, m["fid_unit"])
-    out = {}
-    for kind in kinds:
-        result = fid(
-            _split_units(fake, bounds),
-            _split_units(real, bounds),
-            "kinetic" if kind == "fid_k" else "geometric",
-            fps=FPS,
-            kinetic_mode=m["kinetic_mode"],
-            geometric_frame_time_s=float(m["geometric_frame_time"]),
-            normalize=m["normalize"],
-            drop_constant_ref_columns=m["drop_constant_ref_columns"],
-            origin=m["fid_origin"],
-        )
-        record = result.as_dict()
-        record["convention"].update(unit=m["fid_unit"], reference=m["fid_reference"],
-                                    positions="SMPL-24 FK (metres, y up)",
-                                    skeleton=skeleton.name)  # fmt: skip
-        out[kind] = record
+@dataclass
+class ReconstructionCell:
+    """One (row, N) of a run as a registered metric scores it (``score_reconstructions``):
+    the reconstruction beside the ground truth of the same frames, the config's ``[metrics]``
+    table, the rest skeleton of joint positions, and where to record a skipped metric."""
+
+    ev: Evaluated
+    data: SplitData
+    metrics: dict[str, Any]
+    skeleton: Any
+    skipped: list[Skip]
+    row_key: str
+    n: int
+    fps: float = FPS
+    _positions: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def truth75(self) -> np.ndarray:
+        return self.ev.truth75
+
+    @property
+    def recon75(self) -> np.ndarray:
+        return self.ev.recon75
+
+    def groups(self) -> list[str]:
+        """The seq_id of every evaluated measure."""
+        seqs = self.data.measure_seq[self.ev.rows].tolist()
+        return [self.data.sequences[i]["seq_id"] for i in seqs]
+
+    def n_units(self, unit: str) -> int:
+        return len(_fid_units(self.ev, self.data, unit)) - 1
+
+    def split(self, values: np.ndarray, unit: str) -> list[np.ndarray]:
+        """Rows of the evaluated frames cut into units: ``measure`` or ``sequence``."""
+        return _split_units(values, _fid_units(self.ev, self.data, unit))
+
+    def positions(self, side: str) -> np.ndarray:
+        """SMPL-24 joint positions (F', 24, 3) of ``gen`` (the reconstruction) or ``gt``."""
+        if side not in self._positions:
+            rec = self.ev.reconstruction
+            assert rec is not None and self.data.axis_angle is not None
+            if side == "gen":
+                value = self.skeleton.positions(rec.axis_angle(), rec.trans)
+            else:
+                frame = self.ev.frame
+                value = self.skeleton.positions(self.data.axis_angle[frame], self.data.trans[frame])
+            self._positions[side] = value
+        return self._positions[side]
+
+    def skip(self, metric: str, reason: str) -> None:
+        self.skipped.append(Skip(self.row_key, self.n, metric, reason))
+
+
+def _needs_positions(metrics: list[str]) -> bool:
+    """Whether any of ``metrics`` (config metrics.names) is computed from joint positions."""
+    from dancedata.experiments.metric_registry import registered_metrics, rotation_only_outputs
+
+    rotation_only = rotation_only_outputs()
+    return any(
+        name not in rotation_only
+        for metric in registered_metrics().values()
+        for name in metric.experiment_outputs
+        if name in metrics
+    )
+
+
+def _score_cell(cell: ReconstructionCell, metrics: list[str], reason: str | None
+                ) -> list[dict[str, Any]]:  # fmt: skip
+    """Every registered metric's results of ``metrics`` on one (row, N), in listing order
+    (``reason``: why joint positions are unavailable, or None)."""
+    from dancedata.experiments.metric_registry import registered_metrics, rotation_only_outputs
+
+    rotation_only = rotation_only_outputs()
+    out: list[dict[str, Any]] = []
+    for metric in registered_metrics().values():
+        names = [m for m in metrics if m in metric.experiment_outputs]
+        if not names:
+            continue
+        if reason and any(n not in rotation_only for n in names):
+            for name in names:
+                cell.skip(name, reason)
+            continue
+        out += metric.score_reconstructions(cell, names)
     return out
-
-
-def _score_pfc(ev: Evaluated, data: SplitData, config: ExperimentConfig, skeleton: Any
-               ) -> dict[str, Any]:  # fmt: skip
-    from dancedata.experiments.metrics.pfc import pfc
-
-    m = config.data["metrics"]
-    rec = ev.reconstruction
-    assert rec is not None
-    step = round(FPS / float(m["pfc_fps"]))
-    fake = skeleton.positions(rec.axis_angle(), rec.trans)
-    units = [u[::step] for u in _split_units(fake, _fid_units(ev, data, "sequence"))]
-    clip = int(m["pfc_clip_frames"]) or None
-    record = pfc(units, fps=float(m["pfc_fps"]), up_axis="y", clip_frames=clip).as_dict()
-    record["convention"].update(source_fps=FPS, frame_step=step, unit="sequence",
-                                positions="SMPL-24 FK (metres, y up)",
-                                skeleton=skeleton.name)  # fmt: skip
-    return record
 
 
 def _smpl_model(config: ExperimentConfig, override: str | Path | None) -> tuple[Any, str | None]:
@@ -257,7 +284,7 @@ def run_experiment(
     reader = VersionReader(store, loader.version)
     params = config.keyframe_params()
     metrics = config.metrics
-    wants_fid = any(m in ("fid_g", "fid_k", "pfc") for m in metrics)  # SMPL-24 positions
+    wants_fid = _needs_positions(metrics)  # SMPL-24 positions
     split = config.split
     data = load_split(reader, split["scheme"], split["eval"], split["exclude_genres"],
                       need_axis_angle=wants_fid)  # fmt: skip
@@ -297,27 +324,10 @@ def run_experiment(
                     trained = _fit_train_mean(row, n, config, train, loader)
                 rec = _reconstruct(row, data, rows, kf, config, trained)
             ev = _evaluated(data, rows, rec)
-            scored: dict[str, dict[str, Any]] = {}
-            if "mse" in metrics:
-                scored["mse"] = _score_mse(ev, data, config)
-            fid_kinds = [m for m in metrics if m in ("fid_g", "fid_k")]
-            if fid_kinds and fid_reason:
-                out.skipped.extend(Skip(row.key, n, k, fid_reason) for k in fid_kinds)
-            elif fid_kinds:
-                units = len(_fid_units(ev, data, config.data["metrics"]["fid_unit"])) - 1
-                if units < 2:
-                    why = (
-                        f"FID needs ≥ 2 units, the split gives {units} "
-                        f"({config.data['metrics']['fid_unit']}); try fid_unit = measure"
-                    )
-                    out.skipped.extend(Skip(row.key, n, k, why) for k in fid_kinds)
-                else:
-                    scored.update(_score_fid(ev, data, config, model, fid_kinds))
-            if "pfc" in metrics and fid_reason:
-                out.skipped.append(Skip(row.key, n, "pfc", fid_reason))
-            elif "pfc" in metrics:
-                scored["pfc"] = _score_pfc(ev, data, config, model)
-            for result in scored.values():
+            cell = ReconstructionCell(ev, data, config.data["metrics"], model, out.skipped,
+                                      row.key, n)  # fmt: skip
+            scored = _score_cell(cell, metrics, fid_reason)
+            for result in scored:
                 out.rows.append(_result_row(row, n, result, config, data, params, stem_backend))
             timings[f"{row.key}@{n}"] = round(time.perf_counter() - t0, 3)
     skeleton_id = [f"skeleton:{model.name}"] if model is not None else []

@@ -33,7 +33,6 @@ import numpy as np
 from dancedata._version import __version__
 from dancedata.errors import DancedataError, InputError, StoreError
 from dancedata.experiments.evaluate import (
-    METRICS,
     EvalSequence,
     EvaluateParams,
     Evaluation,
@@ -47,6 +46,7 @@ from dancedata.experiments.evaluate_inputs import (
     resample_generated,
     z_up_to_y_up,
 )
+from dancedata.experiments.metric_registry import metric_names, rotation_only_outputs
 from dancedata.experiments.metrics.beats import beat_frames
 from dancedata.experiments.results_schema import results_table
 from dancedata.io.generated_motion import (
@@ -61,9 +61,6 @@ from dancedata.smpl_skeletons import smpl_skeleton
 from dancedata.store.checksums import canonical_json, sha256_file
 
 __all__ = ["EvaluateOptions", "EvaluateSummary", "evaluate"]
-
-# Metrics computed from rotations alone (no skeleton); every other one reads joint positions.
-_ROTATION_METRICS = frozenset({"mse", "fpd", "fmd"})
 
 
 @dataclass
@@ -639,8 +636,9 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         }
     evaluation = evaluate_sequences(seqs, params, unreadable, reference, generations)
     if skeleton is not None:  # every metric computed from joint positions names its skeleton
+        rotation_only = rotation_only_outputs()  # metrics that need no joint positions
         for result in evaluation.results:
-            if result.name not in _ROTATION_METRICS:
+            if result.name not in rotation_only:
                 result.convention["skeleton"] = skeleton.name
     config = {
         "params": params.as_dict(),
@@ -699,7 +697,7 @@ def evaluate(store_path: str | Path, options: EvaluateOptions) -> EvaluateSummar
         "config": config,
         "n_sequences": len(seq_ids),
         "n_scored": len(seqs),
-        "metrics": list(METRICS),
+        "metrics": list(metric_names()),
         "results": [
             {**r.as_dict(), "unscored": evaluation.unscored.get(r.name, [])}
             for r in evaluation.results

@@ -129,7 +129,7 @@ class AudioSettings:
 @dataclass(frozen=True)
 class CliSetting:
     """One settings field as a command-line option: ``--name`` (underscores as dashes),
-    ``kind`` (str, int, float or path), the CLI default (a path's is None) and its help."""
+    ``kind`` (str, int, float, bool or path), the CLI default (a path's is None) and its help."""
 
     name: str
     kind: str
@@ -140,14 +140,15 @@ class CliSetting:
 
 
 def _kind(cls: type, item: Field[Any]) -> tuple[str, bool]:
-    """The option type of a field from its annotation: (str | int | float | path, optional)."""
+    """The option type of a field from its annotation: (str | int | float | bool | path,
+    optional); a bool is a ``--name/--no-name`` flag."""
     text = item.type if isinstance(item.type, str) else getattr(item.type, "__name__", "")
     parts = [p.strip() for p in str(text).split("|")]
     optional = "None" in parts
     base = [p for p in parts if p != "None"]
     if item.metadata["cli"]["path"]:
         return "path", optional
-    if len(base) != 1 or base[0] not in ("str", "int", "float"):
+    if len(base) != 1 or base[0] not in ("str", "int", "float", "bool"):
         raise TypeError(f"{cls.__name__}.{item.name}: option type {text!r} is not str/int/float")
     return base[0], optional
 
