@@ -331,4 +331,3 @@ def _types(metrics: Sequence[Metric]) -> list[type]:
 def settings_types() -> list[type]:
     """:class:`ScoringSettings`, then each registered metric's settings type once, in order."""
     return [ScoringSettings, *_types(list(registered_metrics().values()))]
-
