@@ -28,10 +28,12 @@ from dancedata.experiments.metric_registry import (
     ScoringSettings,
     experiment_metric_names,
     metric_names,
+    range_notes,
     register_metric,
     registered_metrics,
     rotation_only_outputs,
     settings_types,
+    unit_range_outputs,
     unregister_metric,
 )
 from dancedata.pipeline.family_settings import cli_settings, setting
@@ -76,6 +78,8 @@ def test_registry_lists_the_built_in_metrics_in_order() -> None:
     assert list(registered_metrics()) == ["mse", "features", "beats", "fpd", "pfc", "multimodality"]
     assert experiment_metric_names() == ("mse", "fid_g", "fid_k", "pfc")
     assert rotation_only_outputs() == {"mse", "fpd", "fmd"}  # they name no skeleton
+    assert unit_range_outputs() == {"beat_hit_rate", "beat_accuracy", "bas_mint", "bas_bailando"}
+    assert list(range_notes()) == ["beat_coverage"]
 
 
 def test_every_setting_has_one_owner_and_every_option_is_a_setting() -> None:

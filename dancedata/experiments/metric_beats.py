@@ -177,6 +177,11 @@ class BeatMetrics(Metric):
     needs = ("gen_positions", "music_beats")
     settings_type = BeatSettings
     rank = 30
+    unit_range = ("beat_hit_rate", "beat_accuracy", "bas_mint", "bas_bailando")
+    range_notes = {  # metrics/beats.py: coverage is a ratio of two counts, not a fraction of one
+        "beat_coverage": "= motion beats / music beats (B_k / B_m), not a fraction: above 1 the "
+        "motion has more kinematic beats than the music has beats",
+    }
 
     def compute(self, inputs: MetricInputs, settings: BeatSettings) -> list[MetricResult]:
         beats = inputs.usable(self.outputs, "music_beats", inputs.having("gen_positions"))

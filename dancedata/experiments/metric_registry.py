@@ -48,8 +48,10 @@ __all__ = [
     "metric_names",
     "register_metric",
     "registered_metrics",
+    "range_notes",
     "rotation_only_outputs",
     "settings_types",
+    "unit_range_outputs",
     "unregister_metric",
 ]
 
@@ -225,6 +227,10 @@ class Metric:
     rank: ClassVar[float] = 1000.0
     # The outputs ``experiment run`` also computes (on reconstructions), config metrics.names.
     experiment_outputs: ClassVar[tuple[str, ...]] = ()
+    # Outputs their definition bounds to [0, 1] (a value outside is reported as a bug), and
+    # ratio-like outputs that may leave [0, 1], with what such a value means (printed notes).
+    unit_range: ClassVar[tuple[str, ...]] = ()
+    range_notes: ClassVar[dict[str, str]] = {}
 
     def compute(self, inputs: MetricInputs, settings: Any) -> list[MetricResult]:
         raise NotImplementedError
@@ -308,6 +314,16 @@ def metric_names() -> tuple[str, ...]:
 def experiment_metric_names() -> tuple[str, ...]:
     """The result names ``experiment run`` computes (config ``metrics.names``), in order."""
     return tuple(o for m in registered_metrics().values() for o in m.experiment_outputs)
+
+
+def unit_range_outputs() -> frozenset[str]:
+    """The outputs whose definition bounds them to [0, 1]."""
+    return frozenset(o for m in registered_metrics().values() for o in m.unit_range)
+
+
+def range_notes() -> dict[str, str]:
+    """Output → what a value of it outside [0, 1] means (ratio-like outputs that may)."""
+    return {k: v for m in registered_metrics().values() for k, v in m.range_notes.items()}
 
 
 def rotation_only_outputs() -> frozenset[str]:

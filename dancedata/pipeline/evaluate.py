@@ -46,7 +46,12 @@ from dancedata.experiments.evaluate_inputs import (
     resample_generated,
     z_up_to_y_up,
 )
-from dancedata.experiments.metric_registry import metric_names, rotation_only_outputs
+from dancedata.experiments.metric_registry import (
+    metric_names,
+    range_notes,
+    rotation_only_outputs,
+    unit_range_outputs,
+)
 from dancedata.experiments.metrics.beats import beat_frames
 from dancedata.experiments.results_schema import results_table
 from dancedata.io.generated_motion import (
@@ -163,22 +168,14 @@ class EvaluateSummary:
         return head + "\n" + self.table() + ("" if row is None else "\n" + row)
 
 
-# Ratio-like metrics and what a value outside [0, 1] means (metrics/beats.py): coverage is a
-# ratio of two counts, not a fraction of one.
-_OUTSIDE_UNIT_RANGE = {
-    "beat_coverage": "= motion beats / music beats (B_k / B_m), not a fraction: above 1 the "
-    "motion has more kinematic beats than the music has beats",
-}
-_UNIT_RANGE = {"beat_hit_rate", "beat_accuracy", "bas_mint", "bas_bailando"}
-
-
 def _range_note(metric: str, value: float | None) -> str | None:
     """Why ``value`` of a ratio-like metric lies outside [0, 1], or None when it does not."""
     if value is None or not np.isfinite(value) or 0.0 <= value <= 1.0:
         return None
-    if metric in _OUTSIDE_UNIT_RANGE:
-        return f"{metric} {value:.3g} {_OUTSIDE_UNIT_RANGE[metric]}"
-    if metric in _UNIT_RANGE:
+    notes = range_notes()  # ratio-like metrics: what a value outside [0, 1] means
+    if metric in notes:
+        return f"{metric} {value:.3g} {notes[metric]}"
+    if metric in unit_range_outputs():
         return (
             f"{metric} {value:.3g} is outside [0, 1], which its definition bounds "
             "(should not happen: please report it)"
