@@ -56,7 +56,7 @@ def _octave_bank(
         return hit
     basis, lengths = librosa.filters.wavelet(
         freqs=freqs, sr=sr, filter_scale=1, norm=1, pad_fft=True, window="hann", gamma=0,
-        alpha=alpha,
+        alpha=alpha,  # type: ignore[arg-type]  # librosa takes per-bin alphas; its stub says float
     )  # fmt: skip
     n_fft = basis.shape[1]
     basis *= lengths[:, np.newaxis] / float(n_fft)
@@ -101,8 +101,8 @@ def cqt_magnitude(
         raise ValueError(f"cqt_magnitude needs mono audio and 2+ bins, got {y.shape}, {n_bins}")
     n_octaves = int(np.ceil(float(n_bins) / bins_per_octave))
     n_filters = min(bins_per_octave, n_bins)
-    fmin = librosa.note_to_hz("C1") if fmin is None else fmin
-    fmin = fmin * 2.0 ** (tuning / bins_per_octave)
+    base_hz = float(librosa.note_to_hz("C1")) if fmin is None else fmin
+    fmin = base_hz * 2.0 ** (tuning / bins_per_octave)
     freqs = librosa.interval_frequencies(
         n_bins=n_bins, fmin=fmin, intervals="equal", bins_per_octave=bins_per_octave, sort=True
     )
