@@ -34,7 +34,7 @@ DEMO_RESULTS := data/stores/aist-demo-experiment
 # The sequence drawn for docs/img/plot.png (default: the store's first, looked up at run time).
 DEMO_PLOT_SEQ ?= $$($(PY) -c "import dancedata; print(dancedata.open_store('$(DEMO_STORE)').seq_ids()[0])")
 
-.PHONY: install install-dev install-stems install-viz browser pipeline test lint bench fuzz clean schema
+.PHONY: install install-dev install-stems install-viz browser pipeline test test-fast lint bench fuzz clean schema
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -89,8 +89,17 @@ pipeline: $(STAMP) $(VIZ_STAMP)
 	$(BIN)/dancedata experiment table demo --results $(DEMO_RESULTS)
 
 # Tests use a temporary feature cache (tests/conftest.py sets DANCEDATA_CACHE), never ~/.cache.
+# pytest-xdist runs them on PYTEST_WORKERS processes (auto: one per core), each taking whole
+# test files (--dist loadfile), so a module's store fixture is built once, not once per worker.
+PYTEST_WORKERS ?= auto
+PYTEST_PARALLEL = -n $(PYTEST_WORKERS) --dist loadfile
 test: $(DEV_STAMP) $(STEMS_STAMP) $(VIZ_STAMP) browser
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(PYTEST_PARALLEL)
+
+# The tests not marked slow (subprocess kills, S3, Dask, rendering, OpenUnmix, whole-store runs):
+# the run to repeat while working, under two minutes on two cores.
+test-fast: $(DEV_STAMP) $(STEMS_STAMP) $(VIZ_STAMP)
+	$(PY) -m pytest -q $(PYTEST_PARALLEL) -m "not slow"
 
 # bench_batching.py needs torch: the stems stamp installs the pinned torch build.
 bench: $(DEV_STAMP) $(VIZ_STAMP) $(STEMS_STAMP)
