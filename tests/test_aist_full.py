@@ -24,6 +24,9 @@ from dancedata.synth.aist import synth_aist
 from dancedata.synth.music import synth_dance_music
 from tests.helpers import run_cli
 
+# slow: real public data (and a 40-sequence twin) through every command, end to end
+pytestmark = pytest.mark.slow
+
 KP2D_SEQS = ("gBR_sBM_cAll_d04_mBR2_ch08", "gBR_sBM_cAll_d06_mBR2_ch06")
 AUDIO_SR, HOP = 30720, 512
 

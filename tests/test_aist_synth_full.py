@@ -19,6 +19,9 @@ from dancedata.synth.aist import synth_aist
 from dancedata.synth.catalog import FPS, demo_plan, full_plan, ignore_list
 from dancedata.synth.motion import extrinsic_xyz_to_rotvec
 
+# slow: the full synthetic AIST++ twin (6 sequences, every family) through the pipeline
+pytestmark = pytest.mark.slow
+
 
 def _load(path: Path) -> dict:
     with open(path, "rb") as handle:

@@ -33,6 +33,9 @@ from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from tests.helpers import importorskip_unless_ci
 
+# slow: every audio family featurized without the cache
+pytestmark = pytest.mark.slow
+
 SR = 30720
 HOP = 512
 ALL = ["fact", "stems", "nmfd", "mel96", "stft_frames", "tempogram", "bailando_beats"]

@@ -67,6 +67,7 @@ def opened(store):
 # ------------------------------------------------------------------------- padding collate
 
 
+@pytest.mark.slow
 def test_plain_default_collate_pads_measures_of_different_lengths(store) -> None:
     # It raised RuntimeError; the dataset's __getitems__ now pads each batch (test_torch_idiom).
     ds = MeasureDataset(store, split="train")
@@ -77,6 +78,7 @@ def test_plain_default_collate_pads_measures_of_different_lengths(store) -> None
         assert batch["mask"].sum(1).tolist() == batch["length"].tolist()
 
 
+@pytest.mark.slow
 def test_pad_collate_batch_8_matches_per_item_reads(store, opened) -> None:
     ds = MeasureDataset(store, split="train")
     reference = list(opened.iter_measures(split="train"))
@@ -99,6 +101,7 @@ def test_pad_collate_batch_8_matches_per_item_reads(store, opened) -> None:
     assert seen == len(reference)
 
 
+@pytest.mark.slow
 def test_pad_collate_rounds_up_and_old_windows_api_still_works(store) -> None:
     ds = MeasureDataset(store, split="train", audio=None)
     batch = PadCollate(multiple_of=16)([ds[i] for i in range(len(ds) - 3, len(ds))])
@@ -160,6 +163,7 @@ def test_rotmat_to_quat_matches_scipy_including_half_turns() -> None:
         np.testing.assert_allclose(q, sign * ref, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_resampled_dataset_windows_match_np_interp_and_scipy_slerp(store) -> None:
     frames = 64
     ds = MeasureDataset(store, split="train", window_frames=frames, fit="resample")
@@ -191,6 +195,7 @@ def test_resampled_dataset_windows_match_np_interp_and_scipy_slerp(store) -> Non
         assert item["audio"][:, 34].sum() == raw.audio[:, 34].sum()  # beats kept
 
 
+@pytest.mark.slow
 def test_crop_and_pad(store) -> None:
     lengths = MeasureDataset(store, split="train").lengths
     short, longest = int(lengths.min()), int(lengths.max())
@@ -237,6 +242,7 @@ def test_bucket_batches_cover_every_index_once_with_bounded_spread() -> None:
     assert all(len(b) == 8 for b in full) and len(full) == len(lengths) // 8
 
 
+@pytest.mark.slow
 def test_length_bucket_sampler_over_the_dataset(store) -> None:
     ds = MeasureDataset(store, split="train")
     sampler = LengthBucketSampler(ds.lengths, 8, seed=1, max_spread=2)
@@ -254,6 +260,7 @@ def test_length_bucket_sampler_over_the_dataset(store) -> None:
 # ----------------------------------------------------------------- N-measure, sliding seconds
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("n", "hop"), [(1, None), (2, None), (2, 1), (3, 2), (4, 1)])
 def test_n_measure_windows_cover_brute_force_ranges(store, opened, n, hop) -> None:
     ds = MeasureDataset(store, split="train", n_measures=n, hop_measures=hop)
@@ -277,6 +284,7 @@ def test_n_measure_windows_cover_brute_force_ranges(store, opened, n, hop) -> No
     np.testing.assert_array_equal(ds[i]["audio"].numpy(), opened.view(seq, "fact_audio_35")[a:b])
 
 
+@pytest.mark.slow
 def test_windows_longer_than_every_sequence_are_an_error_not_an_empty_dataset(store) -> None:
     with pytest.raises(InputError, match="no 3600.0 s windows in split 'train'"):
         SecondsDataset(store, split="train", seconds=3600.0)
@@ -296,6 +304,7 @@ def test_measure_groups_skip_gaps() -> None:
         measure_groups(seqs, measures, starts, stops, 0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("seconds", "hop"), [(1.0, None), (4.0, 1.0), (8.0, 2.5), (1.0, 0.35)])
 def test_sliding_second_windows_cover_brute_force_ranges(store, opened, seconds, hop) -> None:
     ds = SecondsDataset(store, split="train", seconds=seconds, hop_seconds=hop)
@@ -318,6 +327,7 @@ def test_sliding_second_windows_cover_brute_force_ranges(store, opened, seconds,
     assert sliding_starts(59, 60, 30.0).size == 0
 
 
+@pytest.mark.slow
 def test_sliding_windows_resampled_to_fixed_frames(store) -> None:
     ds = SecondsDataset(store, split="train", seconds=1.0, window_frames=30)
     batch = next(iter(DataLoader(ds, batch_size=8)))  # plain default collate: all equal size
@@ -327,6 +337,7 @@ def test_sliding_windows_resampled_to_fixed_frames(store) -> None:
 # --------------------------------------------------------------------- seeds and workers
 
 
+@pytest.mark.slow
 def test_same_seed_same_order_different_seed_different_order(store) -> None:
     ds = MeasureDataset(store, split="train")
     a = list(SeededShuffleSampler(len(ds), seed=7))
@@ -365,6 +376,7 @@ def _assert_same_batches(left: list[dict], right: list[dict]) -> None:
                 assert x[key] == y[key], key
 
 
+@pytest.mark.slow
 def test_two_workers_give_the_same_batches_as_none(store) -> None:
     ds = MeasureDataset(store, split="train")
     for bucket in (True, False):
@@ -380,6 +392,7 @@ def test_two_workers_give_the_same_batches_as_none(store) -> None:
         assert sorted(epochs[0]) == sorted(epochs[1]) and epochs[0] != epochs[1]
 
 
+@pytest.mark.slow
 def test_dataset_pickles_small_and_works_in_spawned_workers(store) -> None:
     ds = SecondsDataset(store, split="train", seconds=1.0, window_frames=32)
     ds[0]  # loads the arrays in this process: they must not travel in the pickle
@@ -404,6 +417,7 @@ def test_lengths_mask() -> None:
     ]  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "options",
     [{}, {"window_frames": 128, "fit": "crop"}, {"window_frames": 96, "fit": "resample"}],

@@ -99,6 +99,7 @@ def store(tmp_path_factory):
     return store
 
 
+@pytest.mark.slow
 def test_segment_tables_beats_and_phrases(store):
     plain = json.loads(run_cli("segment", str(store), "--json").stdout)
     out = run_cli(

@@ -21,6 +21,9 @@ from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
 from tests.s3_server import moto_s3
 
+# slow: a moto S3 server on loopback; a four-version store
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def raw(tmp_path_factory):

@@ -26,6 +26,9 @@ from dancedata.store.layout import StoreLayout
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
 
+# slow: Ctrl-C and kills of CLI subprocesses mid-featurize
+pytestmark = pytest.mark.slow
+
 CLI = [sys.executable, "-m", "dancedata.cli"]
 
 

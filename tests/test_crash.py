@@ -8,10 +8,15 @@ import subprocess
 import sys
 import time
 
+import pytest
+
 from dancedata.store.layout import StoreLayout
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
+
+# slow: kills a featurize subprocess mid-write, then reruns it
+pytestmark = pytest.mark.slow
 
 
 def test_sigkill_during_featurize_keeps_previous_version_and_next_run_succeeds(tmp_path):

@@ -17,6 +17,9 @@ import pytest
 
 from tests.helpers import run_cli
 
+# slow: mlcroissant reads the record sets of the session's featurized store
+pytestmark = pytest.mark.slow
+
 mlc = pytest.importorskip("mlcroissant")
 
 

@@ -48,6 +48,9 @@ from dancedata.exec.executors import (  # noqa: E402
     DaskExecutor,
 )
 
+# slow: a real Dask scheduler and worker processes
+pytestmark = pytest.mark.slow
+
 DASK = Path(sys.executable).parent / "dask"
 START_TIMEOUT_S = 120.0  # two workers import dask on a shared 2-core machine
 NO_WORKERS_S = 3.0

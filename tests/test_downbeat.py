@@ -120,6 +120,7 @@ def _copy(store, tmp_path):
     return target
 
 
+@pytest.mark.slow
 def test_phase_auto_on_the_synthetic_twin(featurized, tmp_path):
     store = _copy(featurized, tmp_path)
     out = json.loads(run_cli("segment", str(store), "--phase", "auto", "--json").stdout)
@@ -155,6 +156,7 @@ def test_phase_auto_on_the_synthetic_twin(featurized, tmp_path):
     run_cli("validate", str(store))
 
 
+@pytest.mark.slow
 def test_phase_zero_is_what_segment_always_wrote(featurized, tmp_path):
     store = _copy(featurized, tmp_path)
     out = json.loads(run_cli("segment", str(store), "--json").stdout)

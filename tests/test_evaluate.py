@@ -149,6 +149,7 @@ def test_reader_refuses_malformed_files_naming_them(
 # ----------------------------------------------------------------------------- end to end
 
 
+@pytest.mark.slow
 def test_evaluate_cli_matches_direct_metric_calls(
     store: Path, model_path: Path, tmp_path: Path
 ) -> None:
@@ -221,6 +222,7 @@ def test_evaluate_cli_matches_direct_metric_calls(
     assert "not scored " + positions_only in proc.stderr
 
 
+@pytest.mark.slow
 def test_malformed_and_missing_files_are_reported_not_dropped(
     store: Path, model_path: Path, tmp_path: Path
 ) -> None:
@@ -264,6 +266,7 @@ def test_malformed_and_missing_files_are_reported_not_dropped(
     assert strict.returncode == 1
 
 
+@pytest.mark.slow
 def test_nothing_scorable_is_one_error_line(store: Path, tmp_path: Path) -> None:
     (tmp_path / "empty").mkdir()
     proc = run_cli(
@@ -291,6 +294,7 @@ def test_nothing_scorable_is_one_error_line(store: Path, tmp_path: Path) -> None
     assert bad_split.returncode == 1 and "has no sequences" in bad_split.stderr
 
 
+@pytest.mark.slow
 def test_ground_truth_against_itself_scores_zero(
     store: Path, model_path: Path, tmp_path: Path
 ) -> None:
@@ -316,6 +320,7 @@ def test_ground_truth_against_itself_scores_zero(
     assert by_metric["div_k"] == pytest.approx(by_metric["div_k_gt"])
 
 
+@pytest.mark.slow
 def test_fid_decreases_with_more_keyframes(store: Path, model_path: Path) -> None:
     """The thesis's metric verification (000 §4.1): FID(GT, even + linear SLERP) falls from
     N = 3 to N = 9 (unit: measure, so there are more units than with sequences)."""
@@ -384,6 +389,7 @@ def _even_slerp(store: dancedata.DanceStore, seq: str, n: int):
     return rec, truth, starts, lengths, aa, trans
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_real_motions_even_slerp_mse_and_fid_path(real_store: Path, model_path: Path) -> None:
     """EXPERIMENTS.md §7.2 on the real motions: even + linear SLERP, euler75 XYZ pooled MSE
@@ -413,6 +419,7 @@ def test_real_motions_even_slerp_mse_and_fid_path(real_store: Path, model_path: 
     assert fids[3] > fids[5] > fids[9] > 0, fids
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_real_store_against_itself(real_store: Path, model_path: Path, tmp_path: Path) -> None:
     """FID(GT, GT) = 0 on the real motions; without music beats (no music, not featurized)
@@ -451,6 +458,7 @@ def test_real_store_against_itself(real_store: Path, model_path: Path, tmp_path:
     assert proc.stderr.count("the store has no audio/beats") == 4
 
 
+@pytest.mark.slow
 def test_edge_layout_z_up_30_fps_prefixed_names(
     store: Path, model_path: Path, tmp_path: Path
 ) -> None:
@@ -499,6 +507,7 @@ def test_edge_layout_z_up_30_fps_prefixed_names(
     assert values["z"]["fpd"] < 0.01 * values["y"]["fpd"]
 
 
+@pytest.mark.slow
 def test_measure_units_for_fid_and_mse(store: Path, model_path: Path, tmp_path: Path) -> None:
     """--fid-unit measure / --mse-reduce measure_mean: one unit per complete measure of the
     measures table, numbers equal to direct calls on those units."""
@@ -641,6 +650,7 @@ def test_evaluate_sequences_pure_layer_lists_and_guards() -> None:
         EvaluateParams(fid_unit="clip")
 
 
+@pytest.mark.slow
 def test_skip_frames_scores_bas_mint_as_mint_does(
     store: Path, model_path: Path, tmp_path: Path
 ) -> None:

@@ -31,6 +31,9 @@ from tests.test_metrics_reference import (
     ref_bailando_normalize,
 )
 
+# slow: evaluate over a featurized 4-sequence store
+pytestmark = pytest.mark.slow
+
 CUT = 150  # frames of the cut (Bailando: 1200; the synthetic sequences are shorter)
 
 

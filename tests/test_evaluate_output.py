@@ -6,8 +6,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from dancedata.pipeline.evaluate import EvaluateSummary
 from tests.helpers import run_cli
+
+# slow: a 24-sequence demo store featurized and evaluated
+pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -15,6 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+# slow: trains the example in-betweening transformer (torch)
+pytestmark = pytest.mark.slow
+
 pytest.importorskip("torch")
 
 ROOT = Path(__file__).resolve().parents[1]

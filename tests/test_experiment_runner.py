@@ -21,6 +21,9 @@ import pytest
 from dancedata.errors import InputError
 from dancedata.experiments.config import build_config, load_config
 
+# slow: experiment configs run over a featurized 6-sequence store
+pytestmark = pytest.mark.slow
+
 REPO = Path(__file__).resolve().parents[1]
 CONFIGS = sorted((REPO / "experiments").glob("*.toml"))
 EVAL_TRAIN = ["split.eval=train"]

@@ -92,6 +92,7 @@ def aist_store(tmp_path_factory) -> Path:
     return root / "store"
 
 
+@pytest.mark.slow
 def test_unknown_sequence_lists_close_ids_in_render_and_plot(aist_store: Path, tmp_path) -> None:
     import dancedata
 
@@ -112,6 +113,7 @@ def test_unknown_sequence_lists_close_ids_in_render_and_plot(aist_store: Path, t
     )
 
 
+@pytest.mark.slow
 def test_array_name_off_by_a_letter_names_the_right_one(aist_store: Path) -> None:
     import dancedata
     from dancedata.errors import StoreError

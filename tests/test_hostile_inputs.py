@@ -39,6 +39,9 @@ import pytest
 from tests.data.bad.hostile import Command, HostileCase, all_cases
 from tests.helpers import REPO
 
+# slow: the hostile corpus: one CLI subprocess per case, with memory limits
+pytestmark = pytest.mark.slow
+
 CASES = all_cases()
 MAX_RSS_BYTES = 1 << 30
 MAX_OUTPUT_BYTES = 20_000

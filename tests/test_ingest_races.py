@@ -29,6 +29,9 @@ from dancedata.synth.aist import synth_aist
 from tests import race_harness as race
 from tests.helpers import run_cli
 
+# slow: concurrent ingest subprocesses race on one store
+pytestmark = pytest.mark.slow
+
 # ----------------------------------------------------------------------------- processes
 
 

@@ -318,6 +318,7 @@ def small_store(tmp_path_factory) -> Path:
     return store
 
 
+@pytest.mark.slow
 def test_keyframes_command_writes_a_version_with_every_strategy(small_store: Path) -> None:
     import dancedata
     from dancedata.pipeline.keyframes import KeyframesOptions, keyframes, read_keyframes
@@ -386,6 +387,7 @@ def test_keyframes_command_writes_a_version_with_every_strategy(small_store: Pat
     assert (again.created, again.version) == (False, result.version)
 
 
+@pytest.mark.slow
 def test_keyframes_cli_parameters_reach_the_manifest(small_store: Path) -> None:
     from helpers import run_cli
 
@@ -411,6 +413,7 @@ def test_keyframes_cli_parameters_reach_the_manifest(small_store: Path) -> None:
     assert bad.stderr.strip().splitlines()[-1].startswith("error: unknown keyframe strategy")
 
 
+@pytest.mark.slow
 def test_measures_too_short_for_an_n_are_skipped_and_reported(small_store: Path) -> None:
     from dancedata.pipeline.keyframes import KeyframesOptions, keyframes
 
@@ -422,6 +425,7 @@ def test_measures_too_short_for_an_n_are_skipped_and_reported(small_store: Path)
         keyframes(small_store, KeyframesOptions(strategies=["dp"], n_keyframes=[10_000]))
 
 
+@pytest.mark.slow
 def test_non_finite_motion_or_curves_are_one_line_errors(small_store: Path, tmp_path) -> None:
     import shutil
 
@@ -445,6 +449,7 @@ def test_non_finite_motion_or_curves_are_one_line_errors(small_store: Path, tmp_
         keyframes(store, KeyframesOptions(strategies=["onset"], n_keyframes=[3]))
 
 
+@pytest.mark.slow
 def test_a_keyframe_run_feeds_the_in_betweeners(small_store: Path) -> None:
     """Table → KeyframeRun → SegmentMap → linear_slerp equals even keyframes + SLERP computed
     measure by measure from the loader's views."""

@@ -34,6 +34,9 @@ from dancedata.store.validate import validate_store, validate_version
 from dancedata.synth.aist import synth_aist
 from tests.helpers import REPO, run_cli
 
+# slow: lock holders and waiters in subprocesses, with timeouts
+pytestmark = pytest.mark.slow
+
 _HOLD = textwrap.dedent(
     """
     import sys

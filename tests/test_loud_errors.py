@@ -21,6 +21,9 @@ from tests.helpers import run_cli
 torch = pytest.importorskip("torch")
 from dancedata.torch_data import MeasureDataset, SecondsDataset  # noqa: E402
 
+# slow: three featurized stores (all, partial, no music)
+pytestmark = pytest.mark.slow
+
 
 def _one_error_line(proc, *words: str) -> str:
     assert proc.returncode == 1, proc.stdout + proc.stderr

@@ -27,6 +27,9 @@ from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from tests.helpers import REPO, run_cli
 
+# slow: ingest and featurize into full and read-only folders (subprocesses)
+pytestmark = pytest.mark.slow
+
 FEATURIZE = ("featurize", "--no-audio", "-q")  # motion only: the fastest real writer
 
 

@@ -21,6 +21,9 @@ from dancedata.store.layout import StoreLayout
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 
+# slow: a 6-sequence store through featurize and segment, read by every test
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):

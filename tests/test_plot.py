@@ -26,6 +26,9 @@ from matplotlib.figure import Figure  # noqa: E402
 from dancedata.viz.plot import sequence_figure  # noqa: E402
 from dancedata.viz.plot_data import gather, peak_envelope  # noqa: E402
 
+# slow: plots of the session's featurized store (offline stems, NMFD: built once, ~1 min)
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def store(small_featurized_store):

@@ -23,6 +23,9 @@ from dancedata.synth.aist import synth_aist
 from tests import race_harness as race
 from tests.helpers import run_cli
 
+# slow: concurrent CLI subprocesses race on one store
+pytestmark = pytest.mark.slow
+
 # Motion only: the race is about versions, not features, and this keeps featurize ~1 s of work.
 FEATURIZE = ("featurize", "--no-audio", "-q")
 

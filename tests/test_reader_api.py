@@ -98,6 +98,7 @@ def store_missing_a_song(tmp_path_factory) -> tuple[Path, str]:
     return root / "store", gone.stem
 
 
+@pytest.mark.slow
 def test_music_track_is_the_music_table_row(store_missing_a_song: tuple[Path, str]) -> None:
     import pyarrow.parquet as pq
 
@@ -130,6 +131,7 @@ def test_music_track_is_the_music_table_row(store_missing_a_song: tuple[Path, st
     assert ds.music_track(seq_id) == by_id[ds.sequence(seq_id)["music_id"]]
 
 
+@pytest.mark.slow
 def test_a_process_that_read_tables_exits_cleanly(store_missing_a_song: tuple[Path, str]) -> None:
     """A CLI that reads a store's tables and then exits (here after an error, as `plot STORE
     nope` does) must exit with its own code: pyarrow reading a Python file object (io.BytesIO)

@@ -21,6 +21,9 @@ from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
 from tests.s3_server import moto_s3
 
+# slow: a moto S3 server on loopback; stores written and read over it
+pytestmark = pytest.mark.slow
+
 moto_server = pytest.importorskip("moto.server")
 s3fs = pytest.importorskip("s3fs")
 

@@ -31,6 +31,9 @@ from dancedata.viz.render import (  # noqa: E402
 )
 from dancedata.viz.skeleton_source import load_skeleton  # noqa: E402
 
+# slow: encodes MP4 video (PyAV) and decodes it again
+pytestmark = pytest.mark.slow
+
 BG_RGB = np.array(BACKGROUND[::-1], dtype=np.int32)
 
 
@@ -38,14 +41,11 @@ BG_RGB = np.array(BACKGROUND[::-1], dtype=np.int32)
 
 
 @pytest.fixture(scope="module")
-def aist_store(tmp_path_factory) -> Path:
-    root = tmp_path_factory.mktemp("aist")
-    raw, store = root / "raw", root / "store"
-    run_cli("synth", "aist", str(raw), "--sequences", "2", "--seed", "0", "-q")
-    run_cli("ingest", "aist", str(raw), "--store", str(store), "-q")
-    run_cli("featurize", str(store), "--stems", "none", "-q")
-    run_cli("segment", str(store), "-q")
-    return store
+def aist_store(small_featurized_store: Path) -> Path:
+    """The session's 2-sequence synthetic AIST++ store (synth seed 0 → ingest → featurize →
+    segment; tests/conftest.py). Rendering only reads it: motion, music, measures and beats,
+    none of which depend on the stems the shared store was featurized with."""
+    return small_featurized_store
 
 
 @pytest.fixture(scope="module")

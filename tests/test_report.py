@@ -28,6 +28,9 @@ importorskip_unless_ci("matplotlib")
 from dancedata.viz.report import build_report, gallery_sequences  # noqa: E402
 from dancedata.viz.report_stats import array_stats, expected_range  # noqa: E402
 
+# slow: builds report pages over featurized stores; headless Chromium screenshots
+pytestmark = pytest.mark.slow
+
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars"]
 
 

@@ -29,6 +29,9 @@ from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from tests.helpers import REPO, run_cli
 
+# slow: process pools and a Dask LocalCluster featurize the same 12-sequence store
+pytestmark = pytest.mark.slow
+
 SMALL_UNITS = 4096  # 12 sequences (~11,900 frames) → two chunk-aligned motion units
 
 

@@ -159,6 +159,7 @@ def synthetic_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root / "st"
 
 
+@pytest.mark.slow
 def test_evaluate_without_a_model_poses_ground_truth_about_the_builtin_skeleton(
     synthetic_store: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -14,6 +14,9 @@ import dancedata
 from dancedata.compute.normalization import Moments, denormalize, normalize
 from tests.helpers import run_cli
 
+# slow: a featurized 6-sequence store
+pytestmark = pytest.mark.slow
+
 
 def test_pairwise_moments_equal_numpy_in_any_block_order():
     rng = np.random.default_rng(0)

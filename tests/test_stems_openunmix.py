@@ -24,6 +24,9 @@ from dancedata.io import openunmix_weights as umxw
 from dancedata.pipeline.stem_separation import separate
 from tests.helpers import importorskip_unless_ci
 
+# slow: OpenUnmix (torch) source separation
+pytestmark = pytest.mark.slow
+
 torch = importorskip_unless_ci("torch")
 importorskip_unless_ci("openunmix")
 

@@ -28,6 +28,9 @@ from dancedata.io import openunmix_weights as umxw
 from dancedata.pipeline import stem_separation
 from tests.helpers import importorskip_unless_ci
 
+# slow: OpenUnmix (torch) source separation through featurize
+pytestmark = pytest.mark.slow
+
 torch = importorskip_unless_ci("torch")
 importorskip_unless_ci("openunmix")
 

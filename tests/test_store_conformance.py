@@ -147,6 +147,7 @@ def _one_line_error(proc: subprocess.CompletedProcess) -> str:
 
 
 # -- versions and data -------------------------------------------------------------------------
+@pytest.mark.slow
 def test_versions_and_latest(backend):
     _site, url = backend
     rows = json.loads(run_cli("versions", url, "--json").stdout)
@@ -159,6 +160,7 @@ def test_versions_and_latest(backend):
     assert dancedata.open_store(url, "v1").version == "v1"
 
 
+@pytest.mark.slow
 def test_both_backends_hold_the_same_arrays_and_tables(built):
     (_, local_url), (_, s3_url) = built["local"], built["s3"]
     for version in ("v1", "v2", "v3"):
@@ -188,6 +190,7 @@ def test_both_backends_hold_the_same_arrays_and_tables(built):
 
 
 # -- validate ----------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_a_store_as_committed_is_valid_and_deep_valid(backend):
     _site, url = backend
     assert run_cli("validate", url).stdout.strip() == f"valid: {url}"
@@ -196,6 +199,7 @@ def test_a_store_as_committed_is_valid_and_deep_valid(backend):
     assert proc.stdout.strip() == f"valid (deep): {url}"
 
 
+@pytest.mark.slow
 def test_deep_validate_catches_a_zeroed_chunk(backend, request):
     site, url = backend
     work = site.copy(url, f"zeroed-{request.node.callspec.id}")
@@ -206,6 +210,7 @@ def test_deep_validate_catches_a_zeroed_chunk(backend, request):
     assert f"invalid: v1: {CHUNK_NAME} ({CHUNK}): sha256 differs" in proc.stderr
 
 
+@pytest.mark.slow
 def test_validate_catches_a_chunk_rewritten_through_zarr(backend, request):
     """Values shifted by 1 rad through zarr: a well-formed chunk (its crc32c matches, every
     value is finite, the reader serves it), so only the record made at commit can tell: its
@@ -248,6 +253,7 @@ def _flip_a_byte_that_still_parses(data: bytes) -> bytes:
     raise AssertionError("no single-bit change of the table keeps it readable")
 
 
+@pytest.mark.slow
 def test_deep_validate_catches_a_changed_table_byte(backend, request):
     site, url = backend
     work = site.copy(url, f"table-{request.node.callspec.id}")
@@ -259,6 +265,7 @@ def test_deep_validate_catches_a_changed_table_byte(backend, request):
 
 
 # -- info --------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_info_names_the_store_as_given(backend):
     _site, url = backend
     out = run_cli("info", url).stdout
@@ -285,6 +292,7 @@ def _lock_record(**changes: Any) -> bytes:
     return json.dumps(record).encode()
 
 
+@pytest.mark.slow
 def test_a_held_lock_refuses_a_second_writer_with_one_line(backend, request):
     site, url = backend
     work = site.copy(url, f"held-{request.node.callspec.id}")
@@ -298,6 +306,7 @@ def test_a_held_lock_refuses_a_second_writer_with_one_line(backend, request):
     assert StoreLayout(work).latest() == "v3"
 
 
+@pytest.mark.slow
 def test_a_stale_lock_is_taken_over_by_the_next_writer(backend, request):
     site, url = backend
     work = site.copy(url, f"stale-{request.node.callspec.id}")
@@ -309,6 +318,7 @@ def test_a_stale_lock_is_taken_over_by_the_next_writer(backend, request):
     assert not site.exists(work, LOCK_FILE)
 
 
+@pytest.mark.slow
 def test_unlock_clears_a_stale_lock_and_names_the_store_as_given(backend, request):
     site, url = backend
     work = site.copy(url, f"unlock-{request.node.callspec.id}")
@@ -321,6 +331,7 @@ def test_unlock_clears_a_stale_lock_and_names_the_store_as_given(backend, reques
     assert run_cli("unlock", work).stdout.strip() == f"{work} is not locked"
 
 
+@pytest.mark.slow
 def test_unlock_refuses_a_live_or_foreign_lock_unless_forced(backend, request):
     site, url = backend
     work = site.copy(url, f"foreign-{request.node.callspec.id}")
@@ -340,6 +351,7 @@ def test_unlock_refuses_a_live_or_foreign_lock_unless_forced(backend, request):
 
 
 # -- checkout ----------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_checkout_moves_latest_and_the_next_writer_derives_from_it(backend, request):
     site, url = backend
     work = site.copy(url, f"checkout-{request.node.callspec.id}")
@@ -354,6 +366,7 @@ def test_checkout_moves_latest_and_the_next_writer_derives_from_it(backend, requ
 
 
 # -- failures ----------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_a_missing_store_is_one_line(backend):
     site, _url = backend
     missing = site.url("no-such-store")
@@ -369,6 +382,7 @@ def dead_endpoint(built) -> dict[str, str]:
     return {"AWS_ENDPOINT_URL": f"http://127.0.0.1:{closed_port()}"}
 
 
+@pytest.mark.slow
 def test_a_dead_endpoint_is_one_line_naming_it(built, raw, dead_endpoint):
     _site, url = built["s3"]
     endpoint = dead_endpoint["AWS_ENDPOINT_URL"]
@@ -387,6 +401,7 @@ def test_a_dead_endpoint_is_one_line_naming_it(built, raw, dead_endpoint):
         )
 
 
+@pytest.mark.slow
 def test_missing_credentials_are_one_line_naming_the_endpoint(built, raw, tmp_path):
     _site, url = built["s3"]
     env = {

@@ -12,6 +12,9 @@ from dancedata.errors import InputError
 from dancedata.experiments.tables import Cell, _number, _relative, render_table, resolve_table
 from tests.helpers import run_cli
 
+# slow: a 24-sequence demo store through an experiment run
+pytestmark = pytest.mark.slow
+
 REPO = Path(__file__).resolve().parents[1]
 
 

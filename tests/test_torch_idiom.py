@@ -26,6 +26,9 @@ from dancedata.torch_batching import PadCollate, pad_collate  # noqa: E402
 from dancedata.torch_data import MeasureDataset, SecondsDataset  # noqa: E402
 from tests.s3_server import moto_s3  # noqa: E402
 
+# slow: DataLoader workers over a featurized store, local and S3
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def raw(tmp_path_factory) -> Path:
