@@ -69,6 +69,7 @@ def test_softmask_refuses_negative_input() -> None:
         softmask(-np.ones((2, 2)), np.ones((2, 2)), True)
 
 
+@pytest.mark.slow
 def test_neighbour_median_is_the_partition_median_with_ties() -> None:
     rng = np.random.default_rng(5)
     frames = rng.integers(0, 4, size=(50, 33)).astype(np.float32)  # many ties

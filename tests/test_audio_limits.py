@@ -85,6 +85,7 @@ def test_decode_span_follows_its_formula() -> None:
     assert decode_span_s(None, cfg, 500.0) == (500.0, False)  # no sequence: whole
 
 
+@pytest.mark.slow
 def test_decode_reads_only_the_first_seconds_of_a_long_flac(tmp_path: Path) -> None:
     path = silent_flac(tmp_path / "hour.flac", 3600.0)
     assert path.stat().st_size < 2_000_000
@@ -94,6 +95,7 @@ def test_decode_reads_only_the_first_seconds_of_a_long_flac(tmp_path: Path) -> N
     assert decoded.decoded_s == pytest.approx(40.0)
 
 
+@pytest.mark.slow
 def test_ten_minute_flac_under_a_ten_second_dance_decodes_forty_seconds(tmp_path: Path) -> None:
     store = store_with(tmp_path, silent_flac(tmp_path / "long.flac", 600.0))
     result = featurize(store, FeaturizeOptions(audio_settings=FACT_ONLY, use_cache=False))
@@ -109,6 +111,7 @@ def test_ten_minute_flac_under_a_ten_second_dance_decodes_forty_seconds(tmp_path
     assert seq["audio_truncated_frames"] == frames - 300
 
 
+@pytest.mark.slow
 def test_features_on_the_span_match_librosa_on_the_whole_track(tmp_path: Path) -> None:
     """Onset envelope and MFCC are local: on the frames the dance uses they equal librosa's on
     the whole three-minute file (the span ends 30 s after them)."""
@@ -128,6 +131,7 @@ def test_features_on_the_span_match_librosa_on_the_whole_track(tmp_path: Path) -
     np.testing.assert_allclose(got_mfcc, mfcc[:300], rtol=1e-4, atol=1e-3)
 
 
+@pytest.mark.slow
 def test_long_span_is_refused_before_decoding_unless_allowed(tmp_path: Path) -> None:
     store = store_with(tmp_path, silent_flac(tmp_path / "long.flac", 120.0), dance_s=20.0)
     with pytest.raises(InputError, match=r"would decode 50 s of audio .*over the 30 s limit"):
@@ -142,6 +146,7 @@ def test_long_span_is_refused_before_decoding_unless_allowed(tmp_path: Path) -> 
     assert VersionReader(store).version == "v2"
 
 
+@pytest.mark.slow
 def test_peak_memory_of_an_hour_of_flac_is_that_of_the_span(tmp_path: Path) -> None:
     """Peak RSS of featurize in a subprocess that reports its own VmHWM (not ru_maxrss, which
     survives exec and would include pytest's own peak): decoding the whole
@@ -202,6 +207,7 @@ def test_float_samples_a_little_past_full_scale_are_audio(tmp_path: Path) -> Non
     np.testing.assert_array_equal(load_mono(path, 30720), librosa.load(path, sr=30720)[0])
 
 
+@pytest.mark.slow
 def test_featurize_names_the_file_with_a_nan_sample(tmp_path: Path) -> None:
     path = tmp_path / "nan.wav"
     y = clicks(path, 15.0, subtype="FLOAT")
@@ -225,6 +231,7 @@ def test_flac_named_wav_is_decoded_by_its_content(tmp_path: Path) -> None:
     np.testing.assert_array_equal(load_mono(liar, 30720), librosa.load(flac, sr=30720)[0])
 
 
+@pytest.mark.slow
 def test_twenty_minute_silent_flac_named_wav_through_featurize(tmp_path: Path) -> None:
     liar = silent_flac(tmp_path / "quiet.wav", 1200.0)
     store = store_with(tmp_path, liar)

@@ -88,6 +88,7 @@ def test_default_audio_set_of_a_synthetic_track_equals_the_reference(track, tmp_
     assert len(deviations) == 5 + 12 + 1
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_default_audio_set_of_vibe_ace_equals_the_reference(real_data) -> None:
     path = real_data / "audio" / ref.VIBE_ACE

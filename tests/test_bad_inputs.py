@@ -57,6 +57,7 @@ def _no_payload_ran(root: Path) -> None:
 
 
 # -- the corpus itself -------------------------------------------------------------------------
+@pytest.mark.slow
 def test_corpus_covers_every_kind_of_bad_input(corpus):
     root, cases = corpus
     counts = summary(cases)
@@ -144,6 +145,7 @@ def _ingest_cases(cases: list[Case], folder: str) -> list[Case]:
     return [c for c in cases if c.via == "ingest" and c.path.startswith(folder + "/")]
 
 
+@pytest.mark.slow
 def test_ingest_stops_at_the_first_bad_motion_with_one_line_and_keeps_the_store(corpus, store_v1):
     root, cases = corpus
     before = _snapshot(store_v1)
@@ -162,6 +164,7 @@ def test_ingest_stops_at_the_first_bad_motion_with_one_line_and_keeps_the_store(
     _no_payload_ran(root)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", ["1", "2"])
 def test_ingest_skip_records_every_bad_motion_and_ingests_the_rest(corpus, store_v1, workers):
     """Every hostile pickle (object-flag dtypes, deep nesting, ...) is one skipped line, also
@@ -257,6 +260,7 @@ def test_split_files_naming_missing_sequences_are_reported_and_skipped(corpus, t
     assert validate_store(store) == []
 
 
+@pytest.mark.slow
 def test_undecodable_music_stops_ingest_with_one_line_naming_it(corpus, store_v1):
     root, cases = corpus
     before = _snapshot(store_v1)
@@ -283,6 +287,7 @@ def test_undecodable_music_is_skipped_with_its_sequences_under_skip(corpus, tmp_
     assert result.counts["sequences"] == 2
 
 
+@pytest.mark.slow
 def test_music_with_a_wrong_extension_is_read_by_content_or_reported_missing(tmp_path):
     import soundfile as sf
 
@@ -338,6 +343,7 @@ def test_silent_music_is_accepted_with_finite_features_and_no_beats(tmp_path):
     assert validate_store(store) == []
 
 
+@pytest.mark.slow
 def test_non_utf8_split_file_is_named_in_one_line(tmp_path):
     raw = tmp_path / "raw"
     synth_aist(raw, n_sequences=2, seed=4)
@@ -349,6 +355,7 @@ def test_non_utf8_split_file_is_named_in_one_line(tmp_path):
 
 
 # -- through `dancedata ingest bvh` ------------------------------------------------------------
+@pytest.mark.slow
 def test_ingest_bvh_skips_each_bad_file_with_its_line_and_keeps_the_good(corpus, tmp_path):
     pytest.importorskip("dancedata.ingest.bvh")
     root, cases = corpus

@@ -30,6 +30,7 @@ def librosa_bailando(y: np.ndarray, sr: int) -> np.ndarray:
     return beats_one_hot
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_bailando_beats_equal_librosa_with_bailandos_parameters(real_data: Path) -> None:
     from dancedata.compute.audio_features import AudioFeatureConfig, beats, onset_envelope
@@ -62,6 +63,7 @@ def test_bailando_beats_of_a_click_track() -> None:
     assert np.max(np.min(np.abs(frames[:, None] - click_frames[None, :]), axis=1)) <= 1.5
 
 
+@pytest.mark.slow
 def test_featurize_family_and_evaluate_beat_source(
     store: Path,  # noqa: F811
     model_path: Path,  # noqa: F811

@@ -122,6 +122,7 @@ EXTRA_MIB = 40
 HOSTILE_MB = 50
 
 
+@pytest.mark.slow
 def test_whole_file_on_one_line_fails_fast_with_bounded_memory(tmp_path, baseline_peak_mib):
     path = tmp_path / "one_line.bvh"
     text = rig_text(20, frames=200).replace("\n", " ")
@@ -138,6 +139,7 @@ def test_whole_file_on_one_line_fails_fast_with_bounded_memory(tmp_path, baselin
     assert peak - baseline_peak_mib < EXTRA_MIB, (peak, baseline_peak_mib)
 
 
+@pytest.mark.slow
 def test_frame_rows_on_one_line_fail_without_copying_the_rows(tmp_path, baseline_peak_mib):
     """The hierarchy is fine, every frame row is on one line: the reader holds the frame block
     once (50 MB) and names the line, without splitting it into millions of words."""
@@ -157,6 +159,7 @@ def test_frame_rows_on_one_line_fail_without_copying_the_rows(tmp_path, baseline
     assert peak - baseline_peak_mib < HOSTILE_MB + EXTRA_MIB, (peak, baseline_peak_mib)
 
 
+@pytest.mark.slow
 def test_ten_thousand_deep_hierarchy_is_refused_with_bounded_memory(tmp_path, baseline_peak_mib):
     path = tmp_path / "deep.bvh"
     text = rig_text(10_000, frames=1)
@@ -200,6 +203,7 @@ def test_limits_are_far_above_the_real_rigs(real_data):
     assert max(depth) * 380 <= bvh_head.MAX_DEPTH
 
 
+@pytest.mark.slow
 def test_depth_limit_is_exact():
     assert parse_bvh(rig_text(bvh_head.MAX_DEPTH, frames=1)).skeleton.n_joints == 5_000
     text = rig_text(bvh_head.MAX_DEPTH + 1)
@@ -207,6 +211,7 @@ def test_depth_limit_is_exact():
     assert f"line {line_of(text, 'JOINT j5000')}: the hierarchy nests deeper than 5,000" in message
 
 
+@pytest.mark.slow
 def test_joint_limit_is_exact():
     clip = parse_bvh(rig_text(bvh_head.MAX_JOINTS, chain=False, frames=1))
     assert clip.skeleton.n_joints == 10_000 and set(clip.skeleton.parents[1:]) == {0}
@@ -268,6 +273,7 @@ def test_long_values_are_numbers_on_both_paths_and_bad_ones_fail_fast():
     assert time.perf_counter() - start < 1.0 and "OFFSET: '1111" in message
 
 
+@pytest.mark.slow
 def test_head_past_64_mib_is_refused(tmp_path):
     path = tmp_path / "padded.bvh"
     with path.open("w") as out:
@@ -278,6 +284,7 @@ def test_head_past_64_mib_is_refused(tmp_path):
         read_bvh(path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("pad_mib", [0.99, 1.0, 1.01, 3.99, 4.0, 17.3])
 def test_reading_in_growing_prefixes_equals_parsing_the_whole_file(tmp_path, pad_mib):
     """A head longer than the first read (1 MiB), with words and the MOTION line at or across
@@ -382,6 +389,7 @@ def _store_is_clean(store: Path) -> None:
     assert not (store / ".lock").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("frame_time", ["5e-324", "1e-300"])
 def test_cli_ingest_refuses_a_bad_frame_time_in_one_line(tmp_path, frame_time):
     path = tmp_path / "tiny_time.bvh"
@@ -405,6 +413,7 @@ def test_cli_ingest_refuses_a_bad_frame_time_in_one_line(tmp_path, frame_time):
     assert len(StoreLayout(store).committed_versions()) == 1
 
 
+@pytest.mark.slow
 def test_cli_skips_a_bad_frame_time_and_records_why(tmp_path):
     bad, good = tmp_path / "bad.bvh", tmp_path / "good.bvh"
     bad.write_text(rig_text(frame_time="5e-324"))

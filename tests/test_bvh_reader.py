@@ -79,6 +79,7 @@ def test_real_file_details(real_data):
     assert freya.skeleton.has_position_channels.all()
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 @pytest.mark.parametrize("name", [r[0] for r in REAL_FILES])
 def test_fast_and_strict_motion_paths_agree(real_data, name):

@@ -60,6 +60,7 @@ def test_roundtrip_through_euler_arrays(real_data, name, tmp_path):
     assert format_bvh(again) == out.read_text()
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 @pytest.mark.parametrize("name", NAMES)
 def test_roundtrip_through_rotation_matrices(real_data, name):

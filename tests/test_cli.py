@@ -68,6 +68,7 @@ def test_missing_input_is_one_clear_line(tmp_path):
     assert "Traceback" not in proc.stderr
 
 
+@pytest.mark.slow
 def test_bad_pickle_fails_clearly_and_leaves_store_untouched(tmp_path):
     raw, store = tmp_path / "raw", tmp_path / "store"
     synth_aist(raw, n_sequences=3, seed=0)
@@ -90,6 +91,7 @@ def test_bad_pickle_fails_clearly_and_leaves_store_untouched(tmp_path):
     assert "shape (10, 70)" in skipped[0]["error"]
 
 
+@pytest.mark.slow
 def test_cli_pipeline_json_summaries(tmp_path):
     raw, store = tmp_path / "raw", tmp_path / "store"
     run_cli("synth", "aist", str(raw), "--sequences", "3", "--seed", "1", "-q")
@@ -109,6 +111,7 @@ def test_cli_pipeline_json_summaries(tmp_path):
     assert "v1" in run_cli("versions", str(store)).stdout
 
 
+@pytest.mark.slow
 def test_validate_flags_a_broken_store(tmp_path):
     raw, store = tmp_path / "raw", tmp_path / "store"
     synth_aist(raw, n_sequences=3, seed=0)

@@ -48,6 +48,7 @@ def _no_traceback(proc) -> None:
     assert "Traceback" not in proc.stderr, proc.stderr
 
 
+@pytest.mark.slow
 def test_writer_goes_past_a_version_folder_without_manifest(store):
     (store / "versions" / "v3" / "data.zarr").mkdir(parents=True)  # v3 with no manifest
     proc = run_cli("segment", str(store), "--beats-per-measure", "3", "-q")
@@ -61,6 +62,7 @@ def test_writer_goes_past_a_version_folder_without_manifest(store):
     assert layout.latest() == "v4"
 
 
+@pytest.mark.slow
 def test_validate_reports_a_version_folder_without_manifest(store):
     shutil.copytree(store / "versions" / "v2", store / "versions" / "v3")
     (store / "versions" / "v3" / "manifest.json").unlink()
@@ -70,6 +72,7 @@ def test_validate_reports_a_version_folder_without_manifest(store):
     assert "v3" in proc.stdout + proc.stderr and "manifest" in proc.stdout + proc.stderr
 
 
+@pytest.mark.slow
 def test_manifest_that_is_a_list_is_reported_and_skipped(store):
     (store / "versions" / "v2" / "manifest.json").write_text("[1, 2]\n")
     proc = run_cli("validate", str(store), check=False)
@@ -91,6 +94,7 @@ def test_manifest_that_is_a_list_is_reported_and_skipped(store):
     assert "v2 is damaged" in explicit.stderr and "list" in explicit.stderr
 
 
+@pytest.mark.slow
 def test_manifest_with_non_object_skipped_entries_is_reported(store):
     _edit_manifest(store, "v2", lambda m: {**m, "skipped": [1]})
     proc = run_cli("validate", str(store), check=False)
@@ -99,6 +103,7 @@ def test_manifest_with_non_object_skipped_entries_is_reported(store):
     assert "skipped" in proc.stdout + proc.stderr and "v2" in proc.stdout + proc.stderr
 
 
+@pytest.mark.slow
 def test_ingest_numbers_its_version_past_a_damaged_folder(store, tmp_path):
     _edit_manifest(store, "v2", lambda m: {**m, "stages": {"ingest": 7}})
     (store / "versions" / "v5").mkdir()  # an empty stray folder, further on
@@ -130,6 +135,7 @@ def test_parse_manifest_refuses_what_code_cannot_use(text, expected):
     assert expected in str(info.value)
 
 
+@pytest.mark.slow
 def test_a_written_manifest_passes_the_check(pristine):
     layout = StoreLayout(pristine)
     for name in layout.committed_versions():

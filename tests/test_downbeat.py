@@ -34,6 +34,7 @@ def _cyclic_error(estimate: float, truth: float, fpm: float) -> float:
 AIST_MUSIC_IDS = [f"m{genre[1:]}{k}" for genre in GENRES for k in range(6)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("music_id", AIST_MUSIC_IDS)
 def test_estimate_finds_the_known_downbeat_of_every_synthetic_track(music_id):
     """Every song of the synthetic twin (its tempo and seed, as `synth aist` writes it), cut to
@@ -189,6 +190,7 @@ def test_phase_zero_is_what_segment_always_wrote(featurized, tmp_path):
     assert "phase" not in manifest["counts"]
 
 
+@pytest.mark.slow
 def test_phase_auto_without_music_features_is_one_line_error(tmp_path):
     raw, store = tmp_path / "raw", tmp_path / "store"
     run_cli("synth", "aist", str(raw), "--sequences", "1", "-q")

@@ -16,6 +16,7 @@ from tests.test_experiment_runner import smpl_npz, store  # noqa: F401  (module 
 from tests.test_metrics_pfc import _dance, _z_to_y, edge_pfc
 
 
+@pytest.mark.slow
 def test_experiment_pfc_of_a_perfect_model_is_the_ground_truth_pfc(
     store: Path,  # noqa: F811
     smpl_npz: Path,  # noqa: F811

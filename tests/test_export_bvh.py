@@ -127,6 +127,7 @@ def test_smpl_store_exports_a_generated_layout(tmp_path: Path) -> None:
     assert np.abs(world_positions(builtin)[:, idx] / 100.0 - expected).max() < 1e-6
 
 
+@pytest.mark.slow
 def test_export_errors_are_clear(tmp_path: Path) -> None:
     store = smpl_store(tmp_path)
     proc = run_cli("export", "bvh", str(store), "nope", str(tmp_path / "x.bvh"), check=False)

@@ -144,6 +144,7 @@ def test_a_declared_spec_rejects_what_it_does_not_declare() -> None:
 # ----------------------------------------------------------------------------- schema
 
 
+@pytest.mark.slow
 def test_committed_schema_arrays_are_the_generated_ones() -> None:
     committed = SCHEMA_PATH.read_text(encoding="utf-8")
     assert generated_schema_text(committed) == committed, (
@@ -159,6 +160,7 @@ def test_committed_schema_arrays_are_the_generated_ones() -> None:
     assert check.returncode == 0, check.stderr
 
 
+@pytest.mark.slow
 def test_schema_check_fails_on_a_hand_edited_array(tmp_path: Path) -> None:
     edited = tmp_path / "store.schema.json"
     text = SCHEMA_PATH.read_text(encoding="utf-8")
@@ -180,6 +182,7 @@ def test_schema_check_fails_on_a_hand_edited_array(tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------- CLI options
 
 
+@pytest.mark.slow
 def test_featurize_options_come_from_the_settings_fields() -> None:
     from dancedata.cli.main import build_command
 
@@ -214,6 +217,7 @@ def _arrays(store: Path) -> dict[str, np.ndarray]:
     return {n: np.asarray(reader.array(n)[:]) for n in reader.array_names()}
 
 
+@pytest.mark.slow
 def test_positions_then_kinematics_in_one_run_equal_two_runs(tmp_path: Path, monkeypatch) -> None:
     model = write_npz_model(tmp_path / "smpl.npz")
     monkeypatch.setenv("DANCEDATA_SMPL_MODEL", str(model))

@@ -9,6 +9,7 @@ import re
 import time
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 
 from dancedata.errors import InputError
@@ -56,6 +57,7 @@ def check_valid_doc(doc: BvhDoc) -> None:
     assert clip.frame_time_s == doc.frame_time
 
 
+@pytest.mark.slow
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(bvh_documents())
 def test_generated_valid_files_are_read_exactly(doc):
@@ -72,6 +74,7 @@ def test_what_the_writer_writes_reads_back_the_same(doc):
     np.testing.assert_allclose(again.values, clip.values, rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(mutated_bvh())
 def test_damaged_generated_files_give_a_clip_or_one_error_naming_a_real_line(data):

@@ -9,6 +9,7 @@ from fuzz.run import Stats, main, run_chunk
 from fuzz.targets import TARGETS
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(TARGETS))
 def test_each_fuzz_target_passes_a_short_chunk(name):
     stats = Stats()

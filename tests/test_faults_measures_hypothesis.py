@@ -20,6 +20,7 @@ FPS = st.sampled_from([20.0, 24.0, 25.0, 29.97, 30.0, 60.0, 120.0])
 BPM = st.floats(30.0, 300.0)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(
     bpm=BPM,

@@ -143,6 +143,7 @@ def _hammer(root: str, seed: int, rounds: int) -> int:
     return bad
 
 
+@pytest.mark.slow
 def test_parallel_writers_of_one_entry_are_safe(tmp_path) -> None:
     ctx = multiprocessing.get_context("spawn")
     with ctx.Pool(2) as pool:
@@ -173,6 +174,7 @@ def test_clear_all_older_than_and_stale_temp_files(tmp_path) -> None:
     assert list(tmp_path.iterdir()) == []  # empty shard folders go too
 
 
+@pytest.mark.slow
 def test_track_tempo_keys_only_the_families_that_use_it(tmp_path) -> None:
     """The FACT beats follow the music's known BPM, so a different BPM for the same file misses
     ``fact``; the stems do not depend on it and hit."""
@@ -259,6 +261,7 @@ def _run(store: Path, cache_dir: Path, **options: object):
     return featurize(store, FeaturizeOptions(cache_dir=str(cache_dir), **options))  # type: ignore[arg-type]
 
 
+@pytest.mark.slow
 def test_featurize_reuses_cached_features(raw, tmp_path) -> None:
     cache_dir = tmp_path / "cache"
     store = tmp_path / "store"
@@ -288,6 +291,7 @@ def test_featurize_reuses_cached_features(raw, tmp_path) -> None:
     assert (third.counts["audio_cache_hits"], third.counts["audio_cache_misses"]) == (6, 0)
 
 
+@pytest.mark.slow
 def test_config_change_misses_only_the_families_it_touches(raw, tmp_path) -> None:
     cache_dir = tmp_path / "cache"
     store = tmp_path / "store"
@@ -311,6 +315,7 @@ def test_config_change_misses_only_the_families_it_touches(raw, tmp_path) -> Non
     assert len(FeatureCache(cache_dir).entries()) == 8  # 6 + the 2 new nmfd entries
 
 
+@pytest.mark.slow
 def test_cache_cli_lists_and_clears(raw, tmp_path) -> None:
     cache_dir = tmp_path / "cache"
     store = tmp_path / "store"

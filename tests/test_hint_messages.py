@@ -38,6 +38,7 @@ def test_best_convention_is_the_most_plausible_of_the_usual_ones() -> None:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_cmu_file_in_cm_suggests_the_cmu_convention(real_data: Path, tmp_path: Path) -> None:
     path = real_data / "bvh" / "01_01.bvh"
@@ -54,6 +55,7 @@ def test_cmu_file_in_cm_suggests_the_cmu_convention(real_data: Path, tmp_path: P
     assert "--units dm" not in line and "--units in" not in line
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_inch_walk_under_cm_warns_and_info_shows_the_rig(real_data: Path, tmp_path: Path) -> None:
     path = real_data / "bvh" / "AV_8Walk_Meredith_HVHA_Rep1.bvh"
@@ -141,6 +143,7 @@ def test_missing_path_and_folder_that_is_not_a_store_differ(tmp_path: Path) -> N
     )
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_plot_of_a_sequence_without_music_says_so(real_data: Path, tmp_path: Path) -> None:
     """A featurized BVH store without music: the onset panel says there is no music instead of
@@ -176,6 +179,7 @@ def test_video_without_an_audio_track_says_no_music_was_stored(tmp_path: Path) -
     assert proc.stdout.strip() == "ingest video: wrote version v1"
 
 
+@pytest.mark.slow
 def test_allow_missing_music_reads_no_music_headers(tmp_path: Path) -> None:
     import shutil
 

@@ -277,6 +277,7 @@ def csv_to_bvh_positions(
     return world_positions(clip)[:, order] / 100.0, store
 
 
+@pytest.mark.slow
 def test_joints_csv_to_bvh_through_the_cli_within_a_millimetre(tmp_path: Path) -> None:
     offsets = known_skeleton(12)
     rot = random_rotations(90, seed=13)
@@ -298,6 +299,7 @@ def test_joints_csv_to_bvh_through_the_cli_within_a_millimetre(tmp_path: Path) -
     assert run_cli("validate", str(store), check=False).returncode == 0
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_real_aist_keypoints_to_bvh_reproduce_the_recorded_residual(
     real_data: Path, tmp_path: Path

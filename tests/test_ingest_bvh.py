@@ -109,6 +109,7 @@ def synthetic_bvh(path: Path, fps: float, euler_deg: np.ndarray, n_joints: int =
 # ----------------------------------------------------------------------------- real rigs
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 @pytest.mark.parametrize("name", sorted(REAL))
 def test_real_rig_arrays_match_independent_references(
@@ -162,6 +163,7 @@ def test_real_rig_arrays_match_independent_references(
     assert validate_store(store) == []
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_wrong_units_are_refused_with_a_suggestion(real_data: Path, tmp_path: Path) -> None:
     path = real_data / "bvh" / "01_01.bvh"
@@ -272,6 +274,7 @@ def test_one_skeleton_and_one_rate_per_store(real_data: Path, tmp_path: Path) ->
     assert [f["frames"] for f in result.counts["files"].values()] == [455, 228]
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_append_keeps_the_parent_sequences(real_data: Path, tmp_path: Path) -> None:
     store = tmp_path / "store"
@@ -309,6 +312,7 @@ def test_append_keeps_the_parent_sequences(real_data: Path, tmp_path: Path) -> N
 # ----------------------------------------------------------------------------- music
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_music_pairing_then_featurize_and_segment(real_data: Path, tmp_path: Path) -> None:
     mocap = real_data / "bvh" / "test_mocapbank.bvh"

@@ -131,6 +131,7 @@ def data_checksums(store: Path, version: str = "v1") -> dict[str, str]:
 # ----------------------------------------------------------------------------- folders
 
 
+@pytest.mark.slow
 def test_folder_is_searched_recursively_with_glob_and_files_still_work(tmp_path: Path) -> None:
     root = tmp_path / "takes"
     write_rig(root / "a" / "take1.bvh", rig_clip(1))
@@ -174,6 +175,7 @@ def test_folder_is_searched_recursively_with_glob_and_files_still_work(tmp_path:
 # ----------------------------------------------------------------------------- parallel, resume
 
 
+@pytest.mark.slow
 def test_two_workers_write_the_same_bytes_as_one(tmp_path: Path) -> None:
     folder = tmp_path / "takes"
     for k in range(12):  # 2 read units of 8 files
@@ -188,10 +190,12 @@ def test_two_workers_write_the_same_bytes_as_one(tmp_path: Path) -> None:
     assert counts["units"] == 2 and counts["sequences"] == 12
 
 
+@pytest.mark.slow
 def test_a_killed_ingest_resumes_with_the_units_it_finished(tmp_path: Path) -> None:
     _kill_and_resume(tmp_path, workers=1)
 
 
+@pytest.mark.slow
 def test_a_killed_parallel_ingest_resumes_to_the_serial_bytes(tmp_path: Path) -> None:
     """SIGKILL a --workers 2 run (its worker processes too) once a read task has finished,
     resume it with --workers 2: the finished tasks are not read again, and the store holds the
@@ -256,6 +260,7 @@ def _same_data(a: Path, b: Path) -> bool:
 # ----------------------------------------------------------------------------- position channels
 
 
+@pytest.mark.slow
 def test_one_rig_with_position_channels_goes_into_one_store(tmp_path: Path) -> None:
     first = write_rig(tmp_path / "in" / "first.bvh", rig_clip(1, positions_on_all=True,
                                                              offset_noise_cm=3.0))  # fmt: skip
@@ -278,6 +283,7 @@ def test_one_rig_with_position_channels_goes_into_one_store(tmp_path: Path) -> N
     assert np.abs(back - world_positions(read_bvh(second))).max() < 1e-3  # cm
 
 
+@pytest.mark.slow
 def test_a_real_difference_in_a_fixed_offset_is_still_refused(tmp_path: Path) -> None:
     first = write_rig(tmp_path / "first.bvh", rig_clip(1, positions_on_all=True))
     taller = write_rig(
@@ -302,6 +308,7 @@ def test_a_real_difference_in_a_fixed_offset_is_still_refused(tmp_path: Path) ->
 # ----------------------------------------------------------------------------- rig size
 
 
+@pytest.mark.slow
 def test_a_static_reference_root_is_not_measured(tmp_path: Path) -> None:
     # Hips 6 m from a static reference joint at the origin: joints span > 6 m in every frame.
     path = write_rig(
@@ -317,6 +324,7 @@ def _suggested_units(line: str) -> list[str]:
     return re.findall(r"--units (\S+) \(", line)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("scale", "given", "right"),
     [(10.0, "cm", "mm"), (1 / 2.54, "mm", "in"), (0.01, "cm", "m"), (0.01, "mm", "m")],
@@ -345,6 +353,7 @@ def test_size_error_suggests_only_units_that_pass(
                 str(tmp_path / f"ok{k}"), "-q")  # fmt: skip
 
 
+@pytest.mark.slow
 def test_no_named_unit_fits_suggests_a_number(tmp_path: Path) -> None:
     path = write_rig(tmp_path / "tiny.bvh", rig_clip(6, scale=1e-3))
     line = one_line_error(
@@ -360,6 +369,7 @@ def test_no_named_unit_fits_suggests_a_number(tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------- --frames
 
 
+@pytest.mark.slow
 def test_frames_present_reads_the_rows_the_block_holds(tmp_path: Path) -> None:
     good = write_rig(tmp_path / "good.bvh", rig_clip(7, n_frames=12))
     text = good.read_text()
@@ -408,6 +418,7 @@ REAL_UNITS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 @pytest.mark.parametrize("name", sorted(REAL_UNITS))
 def test_export_after_featurize_writes_the_source_channels(

@@ -26,6 +26,7 @@ def _clicks(path, bpm: float = 120.0, seconds: float = 8.0, sr: int = 22050) -> 
     sf.write(path, (0.5 * y).astype(np.float32), sr)
 
 
+@pytest.mark.slow
 def test_synthetic_clicks_end_to_end(tmp_path):
     wav = tmp_path / "clicks.wav"
     _clicks(wav)
@@ -80,6 +81,7 @@ def test_real_tracks_with_given_tempo(real_data, tmp_path):
     run_cli("validate", str(store))
 
 
+@pytest.mark.slow
 def test_refusals(tmp_path):
     bad = run_cli("ingest", "music", str(tmp_path), "--store", str(tmp_path / "s"), check=False)
     assert bad.returncode == 1 and "no audio files given" in bad.stderr

@@ -104,6 +104,7 @@ def snapshot(store: Path) -> dict[str, bytes]:
 # ----------------------------------------------------------------------------- real data
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_raga_1person_with_music_and_bpm(real_data: Path, tmp_path: Path) -> None:
     folder = real_data / RAGA / "raga_example_1person"
@@ -166,6 +167,7 @@ def test_raga_1person_with_music_and_bpm(real_data: Path, tmp_path: Path) -> Non
     assert np.isfinite(kp[filled][:, :2]).all() and (kp[filled][:, 2] == 0).all()
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_raga_1person_estimates_bpm_when_not_given(real_data: Path, tmp_path: Path) -> None:
     folder = real_data / RAGA / "raga_example_1person"
@@ -183,6 +185,7 @@ def test_raga_1person_estimates_bpm_when_not_given(real_data: Path, tmp_path: Pa
     assert result.counts["bpm_estimated"] == 1
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_raga_3people_drift_refused_then_recorded(real_data: Path, tmp_path: Path) -> None:
     folder = real_data / RAGA / "raga_example_3people"
@@ -220,6 +223,7 @@ def test_raga_3people_drift_refused_then_recorded(real_data: Path, tmp_path: Pat
     assert ds.motion("short_video", "pose2d").shape == (125, 25, 3)
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_audio_track_without_pyav_asks_for_the_extra(real_data: Path, tmp_path: Path) -> None:
     folder = real_data / RAGA / "raga_example_3people"  # this clip has an audio track
@@ -245,6 +249,7 @@ def test_audio_track_without_pyav_asks_for_the_extra(real_data: Path, tmp_path: 
     assert not store.exists()
 
 
+@pytest.mark.slow
 def test_video_audio_track_read_with_pyav(tmp_path: Path) -> None:
     """A video whose own audio track (written with PyAV, lossless PCM in MOV) is the music, on a
     PATH without ffmpeg: ingest describes the very samples written (rate, length, channels) and
@@ -415,6 +420,7 @@ def test_joints_csv_with_and_without_openpose(tmp_path: Path) -> None:
         ingest_video(tmp_path / "store3", [video], options(joints_csv=plain))
 
 
+@pytest.mark.slow
 def test_several_videos_map_to_pose_folders(tmp_path: Path) -> None:
     poses = tmp_path / "poses"
     a = write_video(tmp_path / "a.mp4", 25.0, 10)
@@ -474,6 +480,7 @@ MALFORMED = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(MALFORMED))
 def test_malformed_json_is_one_clear_error_and_store_untouched(tmp_path: Path, case: str) -> None:
     video, poses = generated(tmp_path, 25.0, 12)
@@ -504,6 +511,7 @@ def test_malformed_json_is_one_clear_error_and_store_untouched(tmp_path: Path, c
 # ----------------------------------------------------------------------------- the full chain
 
 
+@pytest.mark.slow
 def test_chain_ingest_featurize_segment_validate_loader(tmp_path: Path) -> None:
     video, poses = generated(tmp_path, 25.0, 100)  # 4 s of video, stored at 30 fps
     wav = write_clicks(tmp_path / "song.wav", 120.0, 4.0)

@@ -21,6 +21,7 @@ def ingest_json(*args: str) -> dict:
     return json.loads(proc.stdout[proc.stdout.index("{") :])
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_raga_1person_without_its_video_equals_the_ingest_with_it(
     real_data: Path, tmp_path: Path
@@ -55,6 +56,7 @@ def test_raga_1person_without_its_video_equals_the_ingest_with_it(
     assert run_cli("validate", str(alone), check=False).returncode == 0
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_raga_3people_without_its_video_keeps_the_json_frames(
     real_data: Path, tmp_path: Path
@@ -81,6 +83,7 @@ def test_without_video_fps_is_required_and_nothing_is_written(
     assert not store.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_a_folder_of_pose_folders_gives_one_sequence_each(real_data: Path, tmp_path: Path) -> None:
     root = tmp_path / "poses"

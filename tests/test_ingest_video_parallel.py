@@ -52,6 +52,7 @@ def same_data(a: Path, b: Path) -> bool:
     return x == y and any(p.startswith("data.zarr/motion/pose2d/") for p in x)
 
 
+@pytest.mark.slow
 def test_two_workers_write_the_same_bytes_as_one(tmp_path: Path) -> None:
     folder = videos_with_poses(tmp_path / "in", n_videos=4, n_frames=30)
     serial, parallel = tmp_path / "serial", tmp_path / "parallel"
@@ -67,6 +68,7 @@ def test_two_workers_write_the_same_bytes_as_one(tmp_path: Path) -> None:
     assert [r["frame_start"] for r in rows] == [0, 30, 61, 93]  # 30, 31, 32, 33 frames
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", ["1", "2"])
 def test_a_killed_ingest_resumes_with_the_videos_it_finished(tmp_path: Path, workers: str) -> None:
     """SIGKILL to the whole process group (worker processes too) once a video is finished,

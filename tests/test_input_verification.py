@@ -93,6 +93,7 @@ def versions(store: Path) -> list[str]:
 # ----------------------------------------------------------------------------- paths, stamps
 
 
+@pytest.mark.slow
 def test_relative_inputs_are_recorded_absolute_and_found_from_elsewhere(
     raw: Path, tmp_path: Path
 ) -> None:
@@ -111,6 +112,7 @@ def test_relative_inputs_are_recorded_absolute_and_found_from_elsewhere(
     assert VersionReader(store).version == "v2"
 
 
+@pytest.mark.slow
 def test_bvh_music_given_relative_is_recorded_absolute(tmp_path: Path) -> None:
     from tests.test_audio_limits import clicks, dance
 
@@ -137,6 +139,7 @@ def test_bvh_music_given_relative_is_recorded_absolute(tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------- changed files
 
 
+@pytest.mark.slow
 def test_changed_music_is_refused_with_one_line_naming_it(fresh: dict[str, Path]) -> None:
     music, store = fresh["music"], fresh["store"]
     rewrite_same_size(music)
@@ -205,6 +208,7 @@ def test_accept_changed_music_rehashes_and_records_it(
     assert result.created
 
 
+@pytest.mark.slow
 def test_cache_never_holds_new_content_under_the_old_hash(
     fresh: dict[str, Path], tmp_path: Path
 ) -> None:

@@ -115,6 +115,7 @@ def test_flipped_byte_in_a_featurized_chunk_spares_the_versions_without_it(store
     assert all("array motion/quat chunk" in p for p in problems)
 
 
+@pytest.mark.slow
 def test_corrupted_table_named_by_deep_validate_and_cli(store):
     _flip(store / "versions" / "v3" / "measures.parquet", offset=200)
     proc = run_cli("validate", str(store), "--deep", check=False)

@@ -205,6 +205,7 @@ def piecewise_linear(length: int, corners: list[int], dims: int, seed: int) -> n
     return np.stack([np.interp(t, knots, values[:, d]) for d in range(dims)], axis=1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("distance", ["vertical", "perpendicular"])
 @pytest.mark.parametrize("engine", ["numba", "numpy"])
 def test_dp_finds_the_corners_of_a_piecewise_linear_curve(distance: str, engine: str) -> None:
@@ -232,6 +233,7 @@ def test_error_table_matches_the_definition(distance: str) -> None:
     assert np.isinf(table["numba"][np.tril_indices(30)]).all()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("distance", ["vertical", "perpendicular"])
 @pytest.mark.parametrize("combine", ["max", "sum"])
 def test_dp_cost_equals_brute_force_over_every_subset(distance: str, combine: str) -> None:

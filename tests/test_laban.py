@@ -132,6 +132,7 @@ def test_effort_distance_is_a_symmetric_relative_difference():
     assert summary == {"time": 3.0, "weight": 2.0}
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_featurize_writes_laban_and_angular_derivative_arrays(real_data, tmp_path):
     """On the real CMU walk (BVH at 120 fps): featurize writes the efforts and derivatives, and

@@ -68,6 +68,7 @@ def test_bas_beats_is_checked() -> None:
         EvaluateParams(bas_beats="all")
 
 
+@pytest.mark.slow
 def test_evaluate_whole_track_mint_keeps_beats_after_the_last_motion_frame(
     store: Path,  # noqa: F811
     model_path: Path,  # noqa: F811

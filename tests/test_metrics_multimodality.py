@@ -69,6 +69,7 @@ def test_identical_generations_have_zero_multimodality() -> None:
     assert result.value == 0.0
 
 
+@pytest.mark.slow
 def test_evaluate_generations_end_to_end(
     store: Path,  # noqa: F811
     model_path: Path,  # noqa: F811
@@ -115,6 +116,7 @@ def test_evaluate_generations_end_to_end(
         assert by[name]["details"]["n_groups"] == len(groups)
 
 
+@pytest.mark.slow
 def test_evaluate_without_generations_says_why(store: Path, tmp_path: Path) -> None:  # noqa: F811
     from dancedata.experiments.evaluate import EvalSequence, EvaluateParams, evaluate_sequences
 

@@ -172,6 +172,7 @@ def test_unsupported_model_files_say_why(tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------- positions
 
 
+@pytest.mark.slow
 def test_smpl_positions_through_featurize(tmp_path: Path) -> None:
     store = aist_store(tmp_path)
     model = write_npz_model(tmp_path / "smpl.npz")
@@ -261,6 +262,7 @@ def hamilton(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_kinematics_and_angular_on_a_bvh_store(real_data: Path, tmp_path: Path) -> None:
     store = two_sequence_bvh_store(real_data, tmp_path)

@@ -70,6 +70,7 @@ def test_euler_panel_is_unwrapped_in_degrees() -> None:
     np.testing.assert_allclose(np.mod(got[:, 0] - raw[:, 0], 360.0), 0.0, atol=1e-9)
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_plot_joint_angles_have_no_wrap_spikes(real_data, tmp_path) -> None:
     """A real clip (freya_edit.bvh) whose joints turn through ±180°: the plotted curves never

@@ -34,6 +34,7 @@ def wav(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("res_type", ["soxr_hq", "kaiser_best", "kaiser_fast", "fft"])
 def test_decode_equals_librosa_load_with_that_res_type(wav, res_type):
     pytest.importorskip("resampy")
@@ -42,6 +43,7 @@ def test_decode_equals_librosa_load_with_that_res_type(wav, res_type):
     np.testing.assert_array_equal(ours, reference)
 
 
+@pytest.mark.slow
 def test_resamplers_differ_by_about_a_percent(wav):
     """What the choice is worth: on this music MFCC and onset strength move by ~1 %."""
     pytest.importorskip("resampy")
@@ -65,6 +67,7 @@ def test_cache_key_depends_on_the_resampler():
     assert len(keys) == 2
 
 
+@pytest.mark.slow
 def test_unknown_resampler_is_refused(wav):
     from dancedata.errors import InputError
 
@@ -99,6 +102,7 @@ def _featurize(store, *extra):
     return manifest, root
 
 
+@pytest.mark.slow
 def test_featurize_records_the_resampler_and_matches_librosa(ingested):
     pytest.importorskip("resampy")
     default_manifest, default_root = _featurize(ingested)

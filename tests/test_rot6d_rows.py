@@ -95,6 +95,7 @@ def test_representations_from_axis_angle_offers_both():
     np.testing.assert_array_equal(reps["rot6d"], zhou_columns(reps["rotmat"]))
 
 
+@pytest.mark.slow
 def test_featurize_writes_rot6d_rows_with_its_layout(tmp_path):
     raw, store = tmp_path / "raw", tmp_path / "store"
     run_cli("synth", "aist", str(raw), "--sequences", "1", "-q")

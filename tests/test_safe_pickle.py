@@ -350,6 +350,7 @@ sys.exit(code)
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", [case for case, *_ in mc.hostile_pickles()])
 def test_each_hostile_class_exits_1_with_one_line_in_a_subprocess(tmp_path, name):
     """Before this unpickler: SIGSEGV (object flags, deep nesting), 2.3 GB (352-byte ndarray

@@ -119,6 +119,7 @@ def test_positions_equal_an_independent_fk_on_real_aist_motions(real_data: Path)
     assert worst < 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_featurize_positions_without_a_model_on_a_real_aist_store(
     real_data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch

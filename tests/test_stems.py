@@ -166,6 +166,7 @@ def test_openunmix_weight_targets_are_the_stem_names_in_order() -> None:
     assert all(set(spec["files"]) == set(STEM_NAMES) for spec in MODELS.values())
 
 
+@pytest.mark.slow
 def test_importing_and_offline_separation_never_import_torch() -> None:
     code = (
         "import sys, numpy as np, dancedata\n"

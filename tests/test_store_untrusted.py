@@ -330,6 +330,7 @@ def test_hostile_store_case_is_refused(name, small_featurized_store, tmp_path):
                 assert re.search(command.expect, record.get("error", "")), (where, record)
 
 
+@pytest.mark.slow
 def test_parquet_declaring_millions_of_rows_is_refused_from_its_footer(tmp_path):
     from dancedata.store.reader import parquet_size_problem
 

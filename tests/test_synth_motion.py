@@ -65,6 +65,7 @@ def _eval_units(seed: int) -> list[np.ndarray]:
     return units
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_demo_eval_set_has_no_constant_feature_column_and_fid_grows_with_noise(seed):
     units = _eval_units(seed)
@@ -127,6 +128,7 @@ def test_root_follows_the_feet():
         assert speed[~double].mean() > 2 * speed[double].mean()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("genre", ["gPO", "gKR", "gMH", "gHO"])
 def test_accents_arrive_on_the_music_beats(genre):
     bpm = 100.0
@@ -179,6 +181,7 @@ def _speeds(genre: str, situation: str, seeds=range(3)) -> tuple[float, float, f
     return float(np.median(root)), float(np.median(joint)), float(np.median(extent))
 
 
+@pytest.mark.slow
 def test_energy_depends_on_the_genre_and_advanced_pieces_travel_further():
     calm = [_speeds(g, "sBM") for g in ("gJS", "gJB")]
     wild = [_speeds(g, "sBM") for g in ("gBR", "gKR")]
@@ -188,6 +191,7 @@ def test_energy_depends_on_the_genre_and_advanced_pieces_travel_further():
         assert _speeds(genre, "sFM")[2] > 1.5 * _speeds(genre, "sBM")[2]
 
 
+@pytest.mark.slow
 def test_joint_rotations_stay_in_plausible_ranges():
     for genre in GENRES:
         dance = synth_dance(1500, FPS, 115.0, seed=11, genre=genre, situation="sFM")
@@ -230,6 +234,7 @@ def _rotation_stats(axis_angle: np.ndarray, trans_m: np.ndarray) -> dict[str, fl
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_twin_statistics_are_within_a_factor_of_real_aist(real_data):
     """Per real motion file, the twin of the same genre, situation, tempo and length (median

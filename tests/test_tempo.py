@@ -58,6 +58,7 @@ def test_mean_tempogram_equals_librosa_tempogram() -> None:
         np.testing.assert_allclose(mean_tempogram(env, win), reference, rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("bpm", [92.0, 120.0, 135.0])
 def test_estimate_equals_librosa_tempo_and_beat_track_on_clicks(bpm) -> None:
     y = _clicks(bpm)
@@ -96,6 +97,7 @@ def test_vibe_ace_estimate_equals_beat_track(real_data) -> None:
     assert round(estimate.bpm, 1) == 129.2
 
 
+@pytest.mark.slow
 def test_tempo_command_text_json_and_errors(tmp_path) -> None:
     paths = []
     for bpm in (100.0, 128.0):

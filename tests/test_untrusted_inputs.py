@@ -230,6 +230,7 @@ def test_joint_csv_header_check_is_linear(tmp_path: Path) -> None:
 
 
 # -- how the command ends ----------------------------------------------------------------------
+@pytest.mark.slow
 def test_the_command_runs_atexit_handlers_and_keeps_its_exit_code(tmp_path: Path) -> None:
     """``run`` ends with os._exit (no teardown, so no SIGABRT from native threads) after the
     atexit handlers: a handler's file is written, and the codes are 0, 1 and 2."""
@@ -256,6 +257,7 @@ def test_the_command_runs_atexit_handlers_and_keeps_its_exit_code(tmp_path: Path
             assert json.loads(proc.stdout)["exit_code"] == 1
 
 
+@pytest.mark.slow
 def test_native_threads_alive_at_exit_never_turn_exit_1_into_sigabrt(tmp_path: Path) -> None:
     """pyarrow threads busy while the process ends: with interpreter teardown (``main`` +
     ``sys.exit``) 2 of 40 such runs died with SIGABRT 134 under load; ``run`` (the command)

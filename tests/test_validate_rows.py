@@ -104,6 +104,7 @@ def _commit_with(store: Path, name: str, values: np.ndarray, attrs: dict | None 
         return version.commit()
 
 
+@pytest.mark.slow
 def test_nan_in_the_last_row_of_positions_is_found(store):
     """Positions were left out, and only 4096 rows were sampled: the last row of a long array
     went unchecked."""
@@ -151,6 +152,7 @@ def _damage(manifest: dict, how: str) -> object:
     return changed
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "how",
     [
