@@ -70,11 +70,13 @@ def _check(out: Path, printed: str, music: bool) -> dict:
     return summary
 
 
+@pytest.mark.slow
 def test_example_on_the_demo_store(tmp_path) -> None:
     printed = _run("--demo", "--out", str(tmp_path / "demo"))
     _check(tmp_path / "demo", printed, music=True)
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_example_on_real_aist(real_data, tmp_path) -> None:
     printed = _run("--raw", str(real_data / "aist"), "--out", str(tmp_path / "real"))

@@ -62,6 +62,7 @@ def _check(summary: dict, joints: int) -> None:
         assert {s.type for s in container.streams} == {"video", "audio"}  # with its music
 
 
+@pytest.mark.slow
 def test_on_a_synthetic_aist_store(tmp_path: Path) -> None:
     raw, store = tmp_path / "raw", tmp_path / "ref"
     run_cli("synth", "aist", str(raw), "--sequences", "2", "--seed", "5", "-q")
@@ -74,6 +75,7 @@ def test_on_a_synthetic_aist_store(tmp_path: Path) -> None:
     assert again["training"]["batches"] == summary["training"]["batches"]
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_on_the_real_cmu_bvh(real_data: Path, tmp_path: Path) -> None:
     store = tmp_path / "cmu"

@@ -78,6 +78,7 @@ def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees((ra * rb.inv()).magnitude())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "layout", ["fact_npy", "smpl_pkl", "edge_pkl", "quat_npz", "bailando_npy", "positions_npy"]
 )
@@ -133,6 +134,7 @@ def _flip(aa: np.ndarray, spans: list[tuple[int, int]]) -> np.ndarray:
     return out
 
 
+@pytest.mark.slow
 def test_cli_end_to_end_smoothed_and_hip_repaired(ref: Path, tmp_path: Path) -> None:
     motion = _motion(ref)
     first = sorted(motion)[0]
@@ -184,6 +186,7 @@ def test_cli_end_to_end_smoothed_and_hip_repaired(ref: Path, tmp_path: Path) -> 
     assert dancedata.open_store(store).version == "v1"
 
 
+@pytest.mark.slow
 def test_positions_store_is_scored_on_positions(ref: Path, tmp_path: Path) -> None:
     write_layout(tmp_path / "gen", _motion(ref), "positions_npy")
     store = tmp_path / "pos-store"
@@ -206,6 +209,7 @@ def test_positions_store_is_scored_on_positions(ref: Path, tmp_path: Path) -> No
     assert proc.returncode == 1 and "positions only" in proc.stderr
 
 
+@pytest.mark.slow
 def test_generated_fps_is_resampled_to_the_reference(ref: Path, tmp_path: Path) -> None:
     motion = _motion(ref)
     half = {s: (aa[::2], t[::2], p[::2]) for s, (aa, t, p) in motion.items()}  # 30 fps files
@@ -252,6 +256,7 @@ def _refused(tmp_path: Path, ref: Path, gen: Path, *extra: str, json_too: bool =
     return error
 
 
+@pytest.mark.slow
 def test_hostile_inputs_one_error_and_nothing_written(ref: Path, tmp_path: Path) -> None:
     motion = _motion(ref)
     first = sorted(motion)[0]

@@ -218,6 +218,7 @@ def synth_store(tmp_path_factory):
     return raw, store
 
 
+@pytest.mark.slow
 def test_round_trip_on_the_synthetic_store(synth_store) -> None:
     _, store = synth_store
     first = json.loads(run_cli("resample", str(store), "--fps", "20", "--json").stdout)
@@ -247,6 +248,7 @@ def test_round_trip_on_the_synthetic_store(synth_store) -> None:
     assert again["version"] == "v3" and not again["created"]
 
 
+@pytest.mark.slow
 def test_tables_follow_the_new_rate(synth_store) -> None:
     _, store = synth_store
     r60, r20 = VersionReader(store, "v2"), VersionReader(store, "v3")
@@ -283,6 +285,7 @@ def test_tables_follow_the_new_rate(synth_store) -> None:
     assert len(phrases) == sum(sum(1 for m in measures if m["seq_id"] == s) // 4 for s in seqs)
 
 
+@pytest.mark.slow
 def test_featurize_and_segment_work_on_the_resampled_store(synth_store, tmp_path) -> None:
     import shutil
 
@@ -302,6 +305,7 @@ def test_featurize_and_segment_work_on_the_resampled_store(synth_store, tmp_path
     assert run_cli("validate", str(copy)).returncode == 0
 
 
+@pytest.mark.slow
 def test_audio_features_are_recomputed_at_the_new_rate(synth_store, tmp_path) -> None:
     """A featurized parent: resample leaves its audio arrays out and featurize recomputes
     them at 20 fps (sr 10240 Hz) in the next version, bit for bit as a featurize run there."""
@@ -340,6 +344,7 @@ def test_audio_features_are_recomputed_at_the_new_rate(synth_store, tmp_path) ->
     assert run_cli("validate", str(copy), "--version", last).returncode == 0
 
 
+@pytest.mark.slow
 def test_ingest_aist_fps(synth_store, tmp_path) -> None:
     raw, store = synth_store
     out = tmp_path / "s20"
@@ -356,6 +361,7 @@ def test_ingest_aist_fps(synth_store, tmp_path) -> None:
     assert got.manifest["config"]["target_fps"] == 20.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("bad", ["0", "-1", "nan", "5000", "twenty"])
 def test_bad_fps_on_the_command_line(synth_store, bad: str, tmp_path) -> None:
     raw, store = synth_store
@@ -371,12 +377,14 @@ def test_bad_fps_on_the_command_line(synth_store, bad: str, tmp_path) -> None:
     assert proc.returncode == 1 and "--fps" in proc.stderr and not (tmp_path / "n").exists()
 
 
+@pytest.mark.slow
 def test_same_rate_is_refused(synth_store) -> None:
     _, store = synth_store
     proc = run_cli("resample", str(store), "--fps", "60", "--version", "v2", "--json", check=False)
     assert proc.returncode == 1 and "already at 60 fps" in json.loads(proc.stdout)["error"]
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_round_trip_on_real_aist(real_data, tmp_path) -> None:
     store = tmp_path / "real"
@@ -394,6 +402,7 @@ def test_round_trip_on_real_aist(real_data, tmp_path) -> None:
     assert run_cli("validate", str(store), "--version", "v2").returncode == 0
 
 
+@pytest.mark.slow
 def test_music_only_store(synth_store, tmp_path) -> None:
     """A store of music alone (no motion): each sequence keeps its track's feature frames at the
     new rate, and featurize recomputes the audio arrays to match."""
@@ -415,6 +424,7 @@ def test_music_only_store(synth_store, tmp_path) -> None:
     assert run_cli("validate", str(store)).returncode == 0
 
 
+@pytest.mark.slow
 def test_windowed_motion_features_are_recomputed(synth_store, tmp_path) -> None:
     """Laban efforts (windows set in frames) are left out of the resampled version and
     recomputed by the laban family at 20 fps in the next one."""

@@ -109,6 +109,7 @@ def _brute_force(opened, seq_id: str, start: int, length: int, names, group: str
 # ------------------------------------------------------------------- any arrays, any store
 
 
+@pytest.mark.slow
 def test_quaternions_and_stft_per_measure_window_equal_the_arrays_sliced(any_store) -> None:
     path, split = any_store
     opened = dancedata.open_store(path)
@@ -140,6 +141,7 @@ def test_quaternions_and_stft_per_measure_window_equal_the_arrays_sliced(any_sto
     assert cols["motion"][0].method == "slerp_quat"
 
 
+@pytest.mark.slow
 def test_quaternions_and_stft_per_seconds_window_equal_the_arrays_sliced(any_store) -> None:
     path, split = any_store
     opened = dancedata.open_store(path)
@@ -164,6 +166,7 @@ def test_quaternions_and_stft_per_seconds_window_equal_the_arrays_sliced(any_sto
         np.testing.assert_array_equal(item["audio"].numpy(), want)
 
 
+@pytest.mark.slow
 def test_resampled_array_windows_slerp_quaternions_and_interpolate_stft(any_store) -> None:
     path, split = any_store
     opened = dancedata.open_store(path)
@@ -196,6 +199,7 @@ def test_resampled_array_windows_slerp_quaternions_and_interpolate_stft(any_stor
         )
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_a_paper_view_that_does_not_fit_the_rig_is_refused_with_the_reason(bvh_store) -> None:
     with pytest.raises(StoreError, match=r"24-joint SMPL rig.*31 joints.*288 columns, not 225"):
@@ -216,6 +220,7 @@ def test_a_paper_view_that_does_not_fit_the_rig_is_refused_with_the_reason(bvh_s
     assert MeasureDataset(bvh_store, motion=None)[0]["audio"].shape[1] == 35
 
 
+@pytest.mark.slow
 def test_array_windows_through_workers_equal_the_in_process_batches(aist_store) -> None:
     ds = MeasureDataset(
         aist_store, split="train", motion=MOTION, audio=AUDIO, n_measures=2, hop_measures=1
@@ -232,6 +237,7 @@ def test_array_windows_through_workers_equal_the_in_process_batches(aist_store) 
 # ---------------------------------------------------------------------- beats and phrases
 
 
+@pytest.mark.slow
 def test_beat_windows_are_the_beats_table_spans(any_store) -> None:
     path, split = any_store
     opened = dancedata.open_store(path)
@@ -262,6 +268,7 @@ def test_beat_windows_are_the_beats_table_spans(any_store) -> None:
     assert batch["beat"].tolist() == [expected[0][1], expected[1][1]]
 
 
+@pytest.mark.slow
 def test_phrase_windows_are_the_phrases_table_rows(any_store) -> None:
     path, split = any_store
     opened = dancedata.open_store(path)
@@ -284,6 +291,7 @@ def test_phrase_windows_are_the_phrases_table_rows(any_store) -> None:
     assert fixed[0]["motion"].shape == (64, ds[0]["motion"].shape[1])
 
 
+@pytest.mark.slow
 def test_a_store_without_the_unit_table_names_the_segment_command(aist_store) -> None:
     with pytest.raises(
         StoreError, match=r"no beats table.*dancedata segment .* --tables measures,beats"
@@ -296,6 +304,7 @@ def test_a_store_without_the_unit_table_names_the_segment_command(aist_store) ->
 # ----------------------------------------------------------------------------- normalising
 
 
+@pytest.mark.slow
 def test_normalised_train_frames_have_mean_0_and_std_1_per_column(aist_store) -> None:
     opened = dancedata.open_store(aist_store)
     fps = float(opened.sequence(opened.seq_ids("train")[0])["fps"])
@@ -319,6 +328,7 @@ def test_normalised_train_frames_have_mean_0_and_std_1_per_column(aist_store) ->
     np.testing.assert_allclose(std[: quat[0].size], quat.reshape(len(quat), -1).std(0), atol=1e-6)
 
 
+@pytest.mark.slow
 def test_denormalize_undoes_normalize_within_float32(aist_store) -> None:
     kw = {"split": "train", "motion": MOTION, "audio": AUDIO, "window_frames": 32, "fit": "crop"}
     plain, normed = (
@@ -352,6 +362,7 @@ ALL = ["motion/rotmat", "motion/quat", "motion/rot6d", "motion/axis_angle", "mot
 ALL += ["motion/trans", "motion/positions"]
 
 
+@pytest.mark.slow
 def test_mirror_twice_is_the_identity_bit_for_bit_and_agrees_across_representations(
     aist_store,
 ) -> None:
@@ -396,6 +407,7 @@ def test_mirror_twice_is_the_identity_bit_for_bit_and_agrees_across_representati
         )
 
 
+@pytest.mark.slow
 def test_yaw_turns_the_root_and_world_vectors_and_keeps_speeds_and_heights(aist_store) -> None:
     ds = MeasureDataset(aist_store, split="train", motion=ALL, audio=None, augment=Yaw())
     rig, plan = store_rig(ds.store), ds.columns["motion"]
@@ -437,6 +449,7 @@ def test_yaw_turns_the_root_and_world_vectors_and_keeps_speeds_and_heights(aist_
     np.testing.assert_allclose(pt[..., 1], pos[..., 1], atol=1e-6)
 
 
+@pytest.mark.slow
 def test_augmentation_is_deterministic_per_seed_epoch_and_index_whatever_the_workers(
     aist_store,
 ) -> None:
@@ -469,6 +482,7 @@ def test_augmentation_is_deterministic_per_seed_epoch_and_index_whatever_the_wor
                 np.testing.assert_array_equal(y["motion"][k, : len(want)].numpy(), want)
 
 
+@pytest.mark.slow
 @pytest.mark.real_data
 def test_mirrored_bvh_rotations_pose_the_mirrored_skeleton(bvh_store) -> None:
     """On the real CMU rig: forward kinematics of the mirrored local rotations and translation
