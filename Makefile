@@ -123,7 +123,7 @@ lint: $(DEV_STAMP) $(STEMS_STAMP)
 # The arrays and extension_arrays of schemas/store.schema.json, from the arrays the code declares
 # (tests/test_family_framework.py fails when the committed file differs).
 schema: $(STAMP)
-	$(PY) -m dancedata.pipeline.schema_arrays
+	$(PY) -m dancedata.featurize.schema_arrays
 
 clean:
 	rm -rf data/raw data/stores .pytest_cache

@@ -111,7 +111,7 @@ def families(
         pass
     out["stems_offline"] = lambda y: stems.separate(y, SR, backend="offline")
     if umx_dir is not None:
-        from dancedata.pipeline import stem_separation
+        from dancedata.featurize import stem_separation
 
         out["stems_openunmix"] = lambda y: stem_separation.separate(
             y, SR, backend="openunmix", weights_dir=umx_dir
@@ -153,9 +153,9 @@ def child(path: str, seconds: float, repeats: int) -> dict[str, object]:
     time.perf_counter = time.process_time
     import dancedata
     from dancedata.compute.audio_features import AudioFeatureConfig
-    from dancedata.pipeline.audio_families import default_families
-    from dancedata.pipeline.audio_track import compute_track_features
-    from dancedata.pipeline.family_settings import AudioSettings
+    from dancedata.featurize.audio_track import compute_track_features
+    from dancedata.featurize.families.audio import default_families
+    from dancedata.featurize.family_settings import AudioSettings
 
     settings, cfg = AudioSettings(), AudioFeatureConfig()
     families = tuple(default_families(settings))

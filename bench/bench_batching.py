@@ -49,9 +49,9 @@ def build_store(path: Path) -> None:
     """Full twin → two genres → featurize → segment into ``path`` (skipped when it exists)."""
     if (path / "store.json").exists():
         return
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
+    from dancedata.featurize.segment import SegmentOptions, segment
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-    from dancedata.pipeline.segment import SegmentOptions, segment
     from dancedata.synth.aist import synth_aist
 
     raw = path.with_name("batching-twin-raw")
@@ -82,7 +82,7 @@ def baseline(store: Path, epochs: int):
     from torch.nn.utils.rnn import pad_sequence
     from torch.utils.data import DataLoader
 
-    from dancedata.torch_data import MeasureDataset
+    from dancedata.read.torch_data import MeasureDataset
 
     ds = MeasureDataset(store, split="train")
     loader = DataLoader(ds, batch_size=1, shuffle=True, collate_fn=lambda items: items[0])
@@ -105,7 +105,7 @@ def baseline(store: Path, epochs: int):
 
 
 def dancedata_loader(ds, epochs: int, workers: int, bucket: bool = True, collate=None):
-    from dancedata.torch_batching import training_loader
+    from dancedata.read.torch_batching import training_loader
 
     loader = training_loader(
         ds, BATCH, seed=0, bucket=bucket, num_workers=workers, collate_fn=collate
@@ -197,7 +197,7 @@ class RepeatedPerTensor(Repeated):
 def workers_only(store: Path, epochs: int, repeat: int) -> int:
     """Issue 24 item 4: ``training_loader`` with 2 workers against 0, batch reads and
     SLERP-resampled windows, with this process's CPU per batch and the load average."""
-    from dancedata.torch_data import MeasureDataset
+    from dancedata.read.torch_data import MeasureDataset
 
     load0 = os.getloadavg()
     rows = []
@@ -246,8 +246,8 @@ def main(argv: list[str]) -> int:
     import numpy as np
     import torch
 
-    from dancedata.batching import bucket_batches, epoch_permutation
-    from dancedata.torch_data import MeasureDataset, SecondsDataset
+    from dancedata.read.batching import bucket_batches, epoch_permutation
+    from dancedata.read.torch_data import MeasureDataset, SecondsDataset
 
     torch.set_num_threads(1)
     print(f"store {store}; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
@@ -263,7 +263,7 @@ def main(argv: list[str]) -> int:
     for workers in (2, 0):
         result = dancedata_loader(ds, args.epochs, workers)
         rows.append((f"dancedata: bucketed, batch reads, {workers} workers", *result))
-    from dancedata.torch_batching import pad_collate
+    from dancedata.read.torch_batching import pad_collate
 
     result = dancedata_loader(ds, args.epochs, 2, collate=pad_collate)
     rows.append(("dancedata: bucketed, items + pad_collate (no batch reads), 2 workers", *result))

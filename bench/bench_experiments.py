@@ -5,7 +5,7 @@ default): keyframes of every strategy the store supports (even; onset, stems, nm
 audio; dp) at N = 3, 5, 9; for each, linear translation + SLERP and oracle-Bézier in-betweens;
 the pooled euler75 MSE of each (strategy, in-betweener, N).
 
-* dancedata: :func:`dancedata.experiments.runner.run_experiment` with that matrix (reading the
+* dancedata: :func:`dancedata.study.runner.run_experiment` with that matrix (reading the
   store, selecting, reconstructing, scoring; results written to a temporary folder), timed
   cold (first call in the process: imports, numba compilation) and warm.
 * baseline: the same work one measure at a time, as a hand-written study script does it:
@@ -59,8 +59,8 @@ def supported(store: Path) -> list[str]:
 
 def ours(store: Path, split: str, strategies: list[str]) -> tuple[float, float, dict, int]:
     """(wall s, CPU s, {(row_key, N): mse}, measures) of one run_experiment call."""
-    from dancedata.experiments.config import build_config
-    from dancedata.experiments.runner import run_experiment
+    from dancedata.study.config import build_config
+    from dancedata.study.runner import run_experiment
 
     config = build_config(
         {
@@ -116,7 +116,7 @@ def baseline(store: Path, split: str, strategies: list[str], sample: int) -> tup
     from bench_keyframes import loop_dp, loop_peaks
 
     import dancedata
-    from dancedata.experiments.keyframes import even_indices
+    from dancedata.methods.keyframes import even_indices
 
     wall, cpu = time.perf_counter(), time.process_time()
     ds = dancedata.open_store(store)

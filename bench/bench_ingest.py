@@ -34,7 +34,7 @@ TWIN = HERE / "out" / "aist-full-twin"
 STAMP = HERE / "out" / "aist-full-twin.stamp"
 BIN = Path(sys.executable).parent / "dancedata"
 # The twin depends on these sources only (and on the seed, fixed at 0).
-SYNTH_SOURCES = ("dancedata/synth/*.py", "dancedata/compute/camera.py", "dancedata/smpl.py")
+SYNTH_SOURCES = ("dancedata/synth/*.py", "dancedata/compute/camera.py", "dancedata/compute/smpl.py")
 
 BASELINE = r"""
 import pickle, sys

@@ -53,7 +53,7 @@ def time_keyframes(store: Path, strategies: list[str]) -> tuple[float, dict[str,
     """Seconds of the whole selection (read + select + table), per strategy, measures."""
     import tempfile
 
-    from dancedata.pipeline.keyframes import KeyframesOptions, keyframes
+    from dancedata.study.keyframes import KeyframesOptions, keyframes
 
     with tempfile.TemporaryDirectory() as tmp:  # write into a copy: the store stays as it is
         import shutil
@@ -79,10 +79,10 @@ def eval_measures(store: Path, split: str) -> tuple:
 
 
 def batched_inbetween(ds, starts: np.ndarray, lengths: np.ndarray) -> dict[int, tuple]:
-    from dancedata.experiments.bezier import bezier_eval, bezier_fit
-    from dancedata.experiments.inbetween import linear_slerp, segment_map
-    from dancedata.experiments.keyframes import even_indices
-    from dancedata.experiments.reconstruction_error import mse_euler75
+    from dancedata.methods.bezier import bezier_eval, bezier_fit
+    from dancedata.methods.inbetween import linear_slerp, segment_map
+    from dancedata.methods.keyframes import even_indices
+    from dancedata.metrics.reconstruction_error import mse_euler75
 
     # Only the evaluated measures' frames, gathered once into compact arrays.
     frames = np.concatenate([np.arange(s, s + n) for s, n in zip(starts, lengths, strict=True)])
@@ -155,7 +155,7 @@ def loop_dp(x: np.ndarray, n: int) -> list[int]:
 def loop_inbetween(quat, trans, x75, start: int, length: int, n: int) -> tuple[float, float]:
     from scipy.spatial.transform import Rotation, Slerp
 
-    from dancedata.experiments.keyframes import even_indices
+    from dancedata.methods.keyframes import even_indices
 
     kf = even_indices(length, n)
     frames = np.arange(length)

@@ -2,7 +2,7 @@
 
 The families' settings options are not written here: :func:`with_settings_options` makes one
 option per field of a settings dataclass that carries a help text
-(:mod:`dancedata.pipeline.family_settings`), with the field's name, type, default and lower
+(:mod:`dancedata.featurize.family_settings`), with the field's name, type, default and lower
 bound, so a new setting reaches the command line without an edit here.
 """
 
@@ -15,7 +15,7 @@ from typing import Annotated, Any
 
 import typer
 
-from dancedata.pipeline.family_settings import CliSetting, cli_settings
+from dancedata.featurize.family_settings import CliSetting, cli_settings
 
 _TYPES: dict[str, type] = {"str": str, "int": int, "float": float, "bool": bool, "path": Path}
 

@@ -13,7 +13,7 @@ from dancedata.cli.common import Json
 from dancedata.cli.main import app
 
 if TYPE_CHECKING:
-    from dancedata.feature_cache import FeatureCache
+    from dancedata.featurize.feature_cache import FeatureCache
 
 cache_app = typer.Typer(
     help="The feature cache: per-track audio features by content, shared by every store.",
@@ -23,7 +23,7 @@ app.add_typer(cache_app, name="cache")
 
 
 def _open(cache_dir: Path | None) -> FeatureCache:
-    from dancedata.feature_cache import FeatureCache, default_cache_dir
+    from dancedata.featurize.feature_cache import FeatureCache, default_cache_dir
 
     return FeatureCache(cache_dir or default_cache_dir())
 
@@ -43,7 +43,7 @@ def list_entries(
 ) -> None:
     """Every cache entry (one per track and audio family): key, family, music, size, last use;
     then the totals per family and overall."""
-    from dancedata.feature_cache import format_bytes
+    from dancedata.featurize.feature_cache import format_bytes
 
     cache = _open(cache_dir)
     entries = cache.entries()
@@ -99,7 +99,7 @@ def clear(
 ) -> None:
     """Remove cache entries (all, or those unused for --older-than DAYS) and temporary files
     left by writers that died. Stores are never touched; the next featurize recomputes."""
-    from dancedata.feature_cache import format_bytes
+    from dancedata.featurize.feature_cache import format_bytes
 
     cache = _open(cache_dir)
     result = cache.clear(older_than)

@@ -97,10 +97,10 @@ def evaluate_command(
     setup(quiet)
     from pathlib import Path
 
-    from dancedata.experiments.evaluate import EvaluateParams
-    from dancedata.experiments.evaluate_conventions import convention_named
-    from dancedata.pipeline.evaluate import EvaluateOptions
-    from dancedata.pipeline.evaluate import evaluate as run
+    from dancedata.metrics.evaluate_conventions import convention_named
+    from dancedata.study.evaluate import EvaluateOptions
+    from dancedata.study.evaluate import evaluate as run
+    from dancedata.study.scoring import EvaluateParams
 
     values = metric_values(settings)  # every metric setting, from the registry
     convention = values.pop("convention")

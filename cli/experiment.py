@@ -66,8 +66,8 @@ def run_command(
     their reason, never replaced."""
     setup(quiet)
     from dancedata.errors import InputError
-    from dancedata.experiments.config import load_config
-    from dancedata.experiments.runner import run_experiment
+    from dancedata.study.config import load_config
+    from dancedata.study.runner import run_experiment
 
     cfg = load_config(config, set_values)
     where = store or cfg.data["store"]
@@ -131,7 +131,7 @@ def table_command(
     Example: dancedata experiment table thesis-no-music --results results/thesis-no-music
     --compare-seed"""
     from dancedata.errors import InputError
-    from dancedata.experiments.tables import (
+    from dancedata.study.tables import (
         list_tables,
         load_results,
         render_table,

@@ -40,7 +40,7 @@ def export_bvh_cmd(
 ) -> None:
     """Write sequence SEQ_ID to OUT.bvh: BVH stores in their original channel layout, other
     stores (SMPL) in a generated one."""
-    from dancedata.pipeline.export_bvh import BvhExportOptions, export_bvh
+    from dancedata.export.bvh import BvhExportOptions, export_bvh
 
     options = BvhExportOptions(
         version=version, units=units, rotation_order=rotation_order, smpl_model=smpl_model

@@ -77,8 +77,8 @@ def ingest_aist_cmd(
       dancedata ingest aist data/raw/aist-demo --store data/stores/aist-20fps --fps 20
     """
     setup(quiet)
-    from dancedata.ingest.aist_inputs import AIST_FPS
-    from dancedata.pipeline.resample_store import check_fps
+    from dancedata.featurize.resample_store import check_fps
+    from dancedata.ingest.aist.inputs import AIST_FPS
 
     target_fps = None if fps is None else check_fps(fps)
     from dancedata.ingest.aist import AistIngestOptions
@@ -102,7 +102,7 @@ def ingest_aist_cmd(
     with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
         result = ingest(store, source_named("aist")(raw, options))
     if target_fps is not None and target_fps != AIST_FPS:
-        from dancedata.pipeline.resample_store import resample_version
+        from dancedata.featurize.resample_store import resample_version
 
         ingested = result.version
         result = resample_version(store, target_fps, version=ingested)

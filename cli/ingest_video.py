@@ -158,7 +158,7 @@ def ingest_video_cmd(
     not finished."""
     setup(quiet)
     from dancedata.ingest.video import VideoIngestOptions, ingest_video
-    from dancedata.ingest.video_poses import PoseSettings
+    from dancedata.ingest.video.poses import PoseSettings
 
     options = VideoIngestOptions(
         poses=poses,

@@ -135,13 +135,13 @@ def keyframes_command(
     table (one row per keyframe) as a new version. The strategies, N and every parameter are
     recorded in the manifest; the same settings again write nothing."""
     setup(quiet)
-    from dancedata.experiments.keyframes import (
+    from dancedata.methods.keyframes import (
         DEFAULT_NMFD_WEIGHTS,
         DEFAULT_STEM_WEIGHTS,
         KeyframeParams,
     )
-    from dancedata.pipeline.keyframes import KeyframesOptions
-    from dancedata.pipeline.keyframes import keyframes as run
+    from dancedata.study.keyframes import KeyframesOptions
+    from dancedata.study.keyframes import keyframes as run
 
     strategies = [s for value in strategy for s in (split_csv(value) or [])]
     params = KeyframeParams(

@@ -1,6 +1,6 @@
 """The metric options of ``dancedata evaluate``, made from the metric registry.
 
-Every field with a help text of :class:`~dancedata.experiments.metric_registry.ScoringSettings`
+Every field with a help text of :class:`~dancedata.study.metric_registry.ScoringSettings`
 and of each registered metric's settings dataclass is one option (``--field-name``, its type,
 default, lower bound and help), as :mod:`dancedata.cli.audio_options` does for the feature
 families. The options are read from the registry each time the command is built, so a metric
@@ -16,11 +16,11 @@ from typing import Any
 
 from dancedata.cli.audio_options import settings_option, settings_values
 
-from dancedata.pipeline.family_settings import cli_settings
+from dancedata.featurize.family_settings import cli_settings
 
 
 def metric_settings_types() -> list[type]:
-    from dancedata.experiments.metric_registry import settings_types
+    from dancedata.study.metric_registry import settings_types
 
     return settings_types()
 

@@ -27,7 +27,7 @@ from dancedata.cli.common import (
 )
 from dancedata.cli.main import app
 
-from dancedata.pipeline.family_settings import AudioSettings, MotionSettings
+from dancedata.featurize.family_settings import AudioSettings, MotionSettings
 
 
 @app.command()
@@ -90,8 +90,8 @@ def featurize(
     features of the offline stems and the NMFD of the drums stem. Per-track audio features
     are cached by content (see `dancedata cache list`)."""
     setup(quiet)
-    from dancedata.pipeline.featurize import FeaturizeOptions
-    from dancedata.pipeline.featurize import featurize as run
+    from dancedata.featurize.featurize import FeaturizeOptions
+    from dancedata.featurize.featurize import featurize as run
 
     smpl_model = settings_values(MotionSettings, settings)["smpl_model"]  # option, else $ENV
     options = FeaturizeOptions(
@@ -147,8 +147,8 @@ def segment(
     """Write the measures table: frames per measure = 60 / bpm × beats_per_measure × fps,
     complete measures only, as a new version; with --tables also the beats and phrases."""
     setup(quiet)
-    from dancedata.pipeline.segment import SegmentOptions
-    from dancedata.pipeline.segment import segment as run
+    from dancedata.featurize.segment import SegmentOptions
+    from dancedata.featurize.segment import segment as run
 
     phase_auto = phase.strip().lower() == "auto"
     try:

@@ -45,8 +45,8 @@ def resample_command(
       dancedata resample data/stores/aist-demo --fps 20
     """
     setup(quiet)
-    from dancedata.pipeline.resample_store import ResampleOptions, check_fps
-    from dancedata.pipeline.resample_store import resample as run
+    from dancedata.featurize.resample_store import ResampleOptions, check_fps
+    from dancedata.featurize.resample_store import resample as run
 
     options = ResampleOptions(
         fps=check_fps(fps), version=version, wait_for_lock=wait, featurize=featurize

@@ -34,8 +34,8 @@ def stats_command(
       dancedata stats data/stores/aist-demo --arrays motion/quat,audio/mfcc --split train
     """
     setup(quiet)
-    from dancedata.pipeline.stats import StatsOptions
-    from dancedata.pipeline.stats import stats as run
+    from dancedata.featurize.stats import StatsOptions
+    from dancedata.featurize.stats import stats as run
 
     options = StatsOptions(
         arrays=split_csv(arrays) or [],

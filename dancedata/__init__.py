@@ -11,13 +11,13 @@ from typing import TYPE_CHECKING
 from dancedata._version import __version__
 
 if TYPE_CHECKING:
-    from dancedata.loader import DanceStore
+    from dancedata.read.loader import DanceStore
 
 __all__ = ["__version__", "open_store"]
 
 
 def open_store(path: str, version: str | None = None) -> DanceStore:
     """Open a store for reading; ``version`` defaults to the latest committed one."""
-    from dancedata.loader import open_store as _open_store
+    from dancedata.read.loader import open_store as _open_store
 
     return _open_store(path, version=version)

@@ -158,8 +158,8 @@ def ensure_features(store: Path, cache: Path) -> None:
 
 def train(torch: Any, store: Path, args: argparse.Namespace) -> tuple[Any, dict]:
     """One epoch of Adam on the windows of ``store``; the model and the losses."""
-    from dancedata.torch_batching import training_loader
-    from dancedata.torch_data import SecondsDataset
+    from dancedata.read.torch_batching import training_loader
+    from dancedata.read.torch_data import SecondsDataset
 
     torch.manual_seed(args.seed)
     torch.use_deterministic_algorithms(True)

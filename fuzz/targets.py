@@ -300,7 +300,7 @@ def check_opcode_stream(data: bytes) -> None:
     source; never another exception, never more than a second."""
     import time
 
-    from dancedata.safe_pickle import loads_restricted
+    from dancedata.io.safe_pickle import loads_restricted
 
     began = time.monotonic()
     with within(5.0):

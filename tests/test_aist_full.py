@@ -18,7 +18,7 @@ import pytest
 import soundfile as sf
 
 import dancedata
-from dancedata.aist_names import music_bpm
+from dancedata.io.aist_names import music_bpm
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from dancedata.synth.music import synth_dance_music

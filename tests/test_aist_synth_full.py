@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dancedata.aist_names import HELD_OUT_MUSIC_IDS, music_bpm
 from dancedata.compute.camera import project_points, projection_matrix, rodrigues_to_rotmat
+from dancedata.io.aist_names import HELD_OUT_MUSIC_IDS, music_bpm
 from dancedata.synth.aist import synth_aist
 from dancedata.synth.catalog import FPS, demo_plan, full_plan, ignore_list
 from dancedata.synth.motion import extrinsic_xyz_to_rotvec

@@ -20,14 +20,14 @@ from dancedata.compute.nmfd import NMFD_COMPONENTS, nmfd_drums
 from dancedata.compute.stem_features import all_stem_features
 from dancedata.compute.stems import STEM_NAMES, backend_config, separate
 from dancedata.errors import InputError
-from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.audio_families import (
+from dancedata.featurize.families.audio import (
     DEFAULT_FAMILIES,
     FAMILIES,
     AudioSettings,
     default_families,
 )
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.store.layout import StoreLayout
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
@@ -261,7 +261,7 @@ def test_openunmix_family_end_to_end(raw, tmp_path, monkeypatch) -> None:
         # stems reach the feature rate afterwards; the file is read here by soundfile directly.
         import soundfile as sf
 
-        from dancedata.pipeline.stem_separation import separate_channels
+        from dancedata.featurize.stem_separation import separate_channels
 
         native, native_sr = sf.read(music["path"], dtype="float32", always_2d=True)
         stems, _ = separate_channels(

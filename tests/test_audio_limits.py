@@ -16,12 +16,12 @@ import soundfile as sf
 
 from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.errors import InputError
+from dancedata.featurize.families.audio_base import AudioSettings
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.music_inputs import DECODE_MARGIN_S, decode_span_s
 from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
 from dancedata.io.audio import load_mono
 from dancedata.io.audio_decode import MAX_ABS_SAMPLE, decode_mono
-from dancedata.pipeline.audio_family_base import AudioSettings
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.music_inputs import DECODE_MARGIN_S, decode_span_s
 from dancedata.store.reader import VersionReader
 from tests.helpers import REPO, run_cli
 from tests.test_ingest_bvh import synthetic_bvh

@@ -17,8 +17,8 @@ from dancedata.compute.augment import (
 )
 from dancedata.compute.fk import forward_kinematics
 from dancedata.compute.motion_features import geometric_features, kinetic_features
+from dancedata.compute.smpl import SMPL_JOINTS, SMPL_PARENTS, SMPL_REST_OFFSETS_M
 from dancedata.io.aist import read_motion
-from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS, SMPL_REST_OFFSETS_M
 
 
 def _fk(axis_angle: np.ndarray, trans: np.ndarray) -> np.ndarray:

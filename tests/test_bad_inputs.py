@@ -213,7 +213,7 @@ def test_ingest_skip_records_every_bad_motion_and_ingests_the_rest(corpus, store
 def test_values_are_checked_as_stored_not_as_read(tmp_path):
     """A finite float64 that the float32 cast turns into Inf is refused naming the file, for
     motions (corpus: poses_1e300_float64, scaling_1e-40) and for keypoints alike."""
-    from dancedata.ingest.aist_annotations import read_annotations
+    from dancedata.ingest.aist.annotations import read_annotations
 
     n = 12
     rng = np.random.default_rng(1)
@@ -321,7 +321,7 @@ def test_silent_music_is_accepted_with_finite_features_and_no_beats(tmp_path):
     not produce NaN features or phantom beats."""
     import soundfile as sf
 
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
 
     raw = tmp_path / "raw"
     synth_aist(raw, n_sequences=1, seed=3)

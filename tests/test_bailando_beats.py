@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from dancedata.compute.bailando_beats import BAILANDO_SR, bailando_beats
-from dancedata.experiments.metrics.beats import bas_mint, beat_frames
+from dancedata.metrics.beats import bas_mint, beat_frames
 from tests.helpers import run_cli
 from tests.test_evaluate import SPLIT, fact_rows, model_path, noisy_motion, store  # noqa: F401
 

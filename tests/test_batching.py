@@ -18,34 +18,34 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-from dancedata.batching import bucket_batches, epoch_permutation, lengths_mask
 from dancedata.errors import InputError
-from dancedata.window_fit import (
+from dancedata.read.batching import bucket_batches, epoch_permutation, lengths_mask
+from dancedata.read.window_fit import (
     ColumnPart,
     fit_window,
     orthonormal_rotmat_to_quat,
     resample_window,
 )
-from dancedata.window_spans import measure_groups, sliding_starts
+from dancedata.read.window_spans import measure_groups, sliding_starts
 
 torch = pytest.importorskip("torch")
 from torch.utils.data import DataLoader  # noqa: E402
 
-from dancedata.torch_batching import (  # noqa: E402
+from dancedata.read.torch_batching import (  # noqa: E402
     LengthBucketSampler,
     PadCollate,
     SeededShuffleSampler,
     pad_collate,
     training_loader,
 )
-from dancedata.torch_data import MeasureDataset, SecondsDataset  # noqa: E402
+from dancedata.read.torch_data import MeasureDataset, SecondsDataset  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def store(tmp_path_factory) -> Path:
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
+    from dancedata.featurize.segment import SegmentOptions, segment
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-    from dancedata.pipeline.segment import SegmentOptions, segment
     from dancedata.synth.aist import synth_aist
 
     root = tmp_path_factory.mktemp("batching")

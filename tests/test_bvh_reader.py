@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dancedata.bvh_ops import world_positions
+from dancedata.compute.bvh_ops import world_positions
 from dancedata.errors import InputError
 from dancedata.io import bvh
 from dancedata.io.bvh import (

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from dancedata.bvh_ops import clip_from_rotations, local_rotmats, world_positions
+from dancedata.compute.bvh_ops import clip_from_rotations, local_rotmats, world_positions
 from dancedata.compute.euler_continuity import euler_alternative, euler_continuous, euler_nearest
 from dancedata.compute.fk import forward_kinematics
 from dancedata.io.bvh import (

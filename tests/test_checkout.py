@@ -11,9 +11,9 @@ import pytest
 
 import dancedata
 from dancedata.errors import StoreError
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.segment import SegmentOptions, segment
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.segment import SegmentOptions, segment
 from dancedata.store.checkout import checkout, checkout_log
 from dancedata.store.layout import StoreLayout
 from dancedata.store.validate import validate_store
@@ -96,7 +96,7 @@ def test_checkout_moves_latest_and_readers_follow(store, tmp_path):
     # every reader: default is now v3, and each takes an explicit version
     assert dancedata.open_store(work).version == "v3" and _measures(work) == four_beat
     assert _measures(work, "v4") == two_beat and _measures(work, "4") == two_beat
-    from dancedata.torch_data import MeasureDataset
+    from dancedata.read.torch_data import MeasureDataset
 
     train_v3 = MeasureDataset(work, split="train", audio=None)
     train_v4 = MeasureDataset(work, split="train", audio=None, version="v4")

@@ -19,9 +19,9 @@ import zarr
 
 import dancedata
 from dancedata.errors import StoreError
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.segment import SegmentOptions, segment
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.segment import SegmentOptions, segment
 from dancedata.store import arrays as store_arrays
 from dancedata.store.arrays import FrameArrayWriter, create_checked_array
 from dancedata.store.build import BuildArea

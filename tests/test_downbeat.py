@@ -15,10 +15,10 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from dancedata.aist_names import GENRES, music_bpm
 from dancedata.compute.audio_features import AudioFeatureConfig, fact_features
 from dancedata.compute.downbeat import estimate_downbeat, sequence_phase, wrap_phase
 from dancedata.compute.measures import measure_bounds, measure_grid
+from dancedata.io.aist_names import GENRES, music_bpm
 from dancedata.synth.catalog import stable_seed
 from dancedata.synth.music import synth_dance_music
 from tests.helpers import run_cli

@@ -17,15 +17,9 @@ import dancedata
 from dancedata.compute.rotations import axis_angle_to_rotmat, quat_to_axis_angle
 from dancedata.compute.smpl_joints import smpl_joint_positions
 from dancedata.errors import InputError
-from dancedata.experiments.metrics import (
-    bas_bailando,
-    bas_mint,
-    beat_frames,
-    fid,
-    mse,
-)
 from dancedata.io.generated_motion import read_generated_motion
 from dancedata.io.smpl_model import load_smpl_model
+from dancedata.metrics import bas_bailando, bas_mint, beat_frames, fid, mse
 from tests.helpers import run_cli
 from tests.test_motion_families import write_npz_model
 
@@ -324,8 +318,8 @@ def test_ground_truth_against_itself_scores_zero(
 def test_fid_decreases_with_more_keyframes(store: Path, model_path: Path) -> None:
     """The thesis's metric verification (000 §4.1): FID(GT, even + linear SLERP) falls from
     N = 3 to N = 9 (unit: measure, so there are more units than with sequences)."""
-    from dancedata.experiments.inbetween import linear_slerp, segment_map
-    from dancedata.experiments.keyframes import even_indices
+    from dancedata.methods.inbetween import linear_slerp, segment_map
+    from dancedata.methods.keyframes import even_indices
 
     s = dancedata.open_store(store)
     model = load_smpl_model(model_path)
@@ -374,8 +368,8 @@ def real_store(real_data: Path, tmp_path_factory: pytest.TempPathFactory) -> Pat
 
 def _even_slerp(store: dancedata.DanceStore, seq: str, n: int):
     from dancedata.compute.rotations import axis_angle_to_euler, axis_angle_to_quat
-    from dancedata.experiments.inbetween import linear_slerp, segment_map
-    from dancedata.experiments.keyframes import even_indices
+    from dancedata.methods.inbetween import linear_slerp, segment_map
+    from dancedata.methods.keyframes import even_indices
 
     rows = [m for m in store.measures.to_pylist() if m["seq_id"] == seq]
     aa, trans = store.motion(seq, "axis_angle"), store.motion(seq, "trans")
@@ -615,7 +609,7 @@ def test_reader_refuses_oversized_claims_and_survives_corruption(tmp_path: Path)
 def test_evaluate_sequences_pure_layer_lists_and_guards() -> None:
     """The pure layer: a metric family whose maths fails is skipped with the reason while the
     others are computed; each sequence missing an input is listed under the metrics it misses."""
-    from dancedata.experiments.evaluate import EvalSequence, EvaluateParams, evaluate_sequences
+    from dancedata.study.scoring import EvalSequence, EvaluateParams, evaluate_sequences
 
     rng = np.random.default_rng(3)
     seqs = []
@@ -694,8 +688,8 @@ def test_skip_frames_scores_bas_mint_as_mint_does(
 def test_fid_reference_other_than_paired_ground_truth() -> None:
     """fid_reference train_gt / all_gt: the given reference units normalise and are compared
     with; div_*_gt is the reference's own diversity."""
-    from dancedata.experiments.evaluate import EvalSequence, EvaluateParams, evaluate_sequences
-    from dancedata.experiments.metrics import diversity, motion_feature_matrix
+    from dancedata.metrics import diversity, motion_feature_matrix
+    from dancedata.study.scoring import EvalSequence, EvaluateParams, evaluate_sequences
 
     rng = np.random.default_rng(4)
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from dancedata.pipeline.evaluate import EvaluateSummary
+from dancedata.study.evaluate import EvaluateSummary
 from tests.helpers import run_cli
 
 # slow: a 24-sequence demo store featurized and evaluated

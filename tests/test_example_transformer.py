@@ -43,9 +43,9 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """12 synthetic AIST++ sequences (train 5, val 3, test 3 on the crossmodal split), ingested
     with its motion featurized (rotation matrices; no audio: the motion variant needs none) and
     segmented into measures: a real store."""
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
+    from dancedata.featurize.segment import SegmentOptions, segment
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-    from dancedata.pipeline.segment import SegmentOptions, segment
     from dancedata.synth.aist import synth_aist
 
     root = tmp_path_factory.mktemp("transformer")
@@ -264,7 +264,7 @@ def test_frames_before_the_first_measure_hold_the_first_keyframe(
     import shutil
 
     import dancedata
-    from dancedata.pipeline.segment import SegmentOptions, segment
+    from dancedata.featurize.segment import SegmentOptions, segment
 
     copy = tmp_path / "store"
     shutil.copytree(store, copy)

@@ -1,5 +1,5 @@
 """PFC as an experiment metric (``metrics.names = ["pfc"]``) and in ``evaluate``'s pure layer:
-the recorded value equals :func:`~dancedata.experiments.metrics.pfc.pfc` called directly on the
+the recorded value equals :func:`~dancedata.metrics.pfc.pfc` called directly on the
 same SMPL-24 positions at 30 fps, and the frame rate and clip length are recorded."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from dancedata.errors import InputError
-from dancedata.experiments.config import build_config
-from dancedata.experiments.metrics.pfc import pfc
+from dancedata.metrics.pfc import pfc
+from dancedata.study.config import build_config
 from tests.test_experiment_runner import smpl_npz, store  # noqa: F401  (module fixtures)
 from tests.test_metrics_pfc import _dance, _z_to_y, edge_pfc
 
@@ -24,8 +24,8 @@ def test_experiment_pfc_of_a_perfect_model_is_the_ground_truth_pfc(
 ) -> None:
     import dancedata
     from dancedata.compute.smpl_joints import smpl_joint_positions
-    from dancedata.experiments.runner import run_experiment
     from dancedata.io.smpl_model import load_smpl_model
+    from dancedata.study.runner import run_experiment
 
     ds = dancedata.open_store(store)
     measures = ds.measure_rows("train")
@@ -77,7 +77,7 @@ def test_experiment_pfc_settings_are_checked() -> None:
 def test_evaluate_pure_layer_pfc_equals_edge_on_both_sides() -> None:
     """evaluate takes every second frame of 60 fps positions (y up) and gives EDGE's value on
     the same frames in its z-up frame; the ground truth is scored as pfc_gt."""
-    from dancedata.experiments.evaluate import EvalSequence, EvaluateParams, evaluate_sequences
+    from dancedata.study.scoring import EvalSequence, EvaluateParams, evaluate_sequences
 
     gen = [_z_to_y(_dance(s, 300)) for s in range(3)]
     gt = [_z_to_y(_dance(10 + s, 300)) for s in range(3)]

@@ -19,7 +19,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from dancedata.errors import InputError
-from dancedata.experiments.config import build_config, load_config
+from dancedata.study.config import build_config, load_config
 
 # slow: experiment configs run over a featurized 6-sequence store
 pytestmark = pytest.mark.slow
@@ -31,9 +31,9 @@ EVAL_TRAIN = ["split.eval=train"]
 
 @pytest.fixture(scope="module")
 def store(tmp_path_factory) -> Path:
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
+    from dancedata.featurize.segment import SegmentOptions, segment
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-    from dancedata.pipeline.segment import SegmentOptions, segment
     from dancedata.synth.aist import synth_aist
 
     root = tmp_path_factory.mktemp("experiment")
@@ -49,7 +49,7 @@ def store(tmp_path_factory) -> Path:
 def smpl_npz(tmp_path_factory) -> Path:
     """A stand-in SMPL model file in the real .npz layout: 24 'vertices' at the rest joints of
     the toolkit's approximate skeleton, an identity joint regressor (no SMPL model can ship)."""
-    from dancedata.smpl import SMPL_PARENTS, SMPL_REST_OFFSETS_M
+    from dancedata.compute.smpl import SMPL_PARENTS, SMPL_REST_OFFSETS_M
 
     rest = np.zeros((24, 3))
     for j, parent in enumerate(SMPL_PARENTS):
@@ -61,14 +61,14 @@ def smpl_npz(tmp_path_factory) -> Path:
 
 
 def run(config_path: Path, store: Path, out: Path, extra: list[str] | None = None, **kw):
-    from dancedata.experiments.runner import run_experiment
+    from dancedata.study.runner import run_experiment
 
     config = load_config(config_path, [*EVAL_TRAIN, *(extra or [])])
     return run_experiment(config, store, out_dir=out, **kw)
 
 
 def cell_classes(table_id: str) -> dict[str, str]:
-    from dancedata.experiments.tables import seed_tables
+    from dancedata.study.tables import seed_tables
 
     registry = seed_tables()["row_registry"]
     rows = seed_tables()["tables"][table_id]["rows"]
@@ -82,7 +82,7 @@ def cell_classes(table_id: str) -> dict[str, str]:
 def test_every_shipped_config_fills_its_data_and_statistics_cells(
     config_path: Path, store: Path, smpl_npz: Path, tmp_path: Path
 ) -> None:
-    from dancedata.experiments.tables import build, load_results, render_table
+    from dancedata.study.tables import build, load_results, render_table
 
     output = run(config_path, store, tmp_path / "out", smpl_model=smpl_npz)
     rows, skipped = load_results([tmp_path / "out"])
@@ -119,7 +119,7 @@ def test_without_an_smpl_model_fid_cells_use_the_builtin_skeleton(
     (its sha256 in the variant) and changes the run id."""
     import hashlib
 
-    from dancedata.experiments.tables import build, load_results
+    from dancedata.study.tables import build, load_results
 
     monkeypatch.delenv("DANCEDATA_SMPL_MODEL", raising=False)
     config = REPO / "experiments" / "thesis-verification.toml"
@@ -146,9 +146,9 @@ def test_even_slerp_mse_equals_direct_calls_and_a_scipy_loop(store: Path, tmp_pa
     from scipy.spatial.transform import Rotation, Slerp
 
     import dancedata
-    from dancedata.experiments.inbetween import linear_slerp, segment_map
-    from dancedata.experiments.keyframes import even_indices
-    from dancedata.experiments.reconstruction_error import mse_euler75
+    from dancedata.methods.inbetween import linear_slerp, segment_map
+    from dancedata.methods.keyframes import even_indices
+    from dancedata.metrics.reconstruction_error import mse_euler75
 
     output = run(REPO / "experiments" / "demo.toml", store, tmp_path / "out")
     got = {r["n_keyframes"]: r["value"] for r in output.rows
@@ -192,7 +192,7 @@ def test_even_slerp_mse_equals_direct_calls_and_a_scipy_loop(store: Path, tmp_pa
 
 def test_class_m_rows_fill_from_generated_outputs(store: Path, tmp_path: Path) -> None:
     import dancedata
-    from dancedata.experiments.tables import build, load_results
+    from dancedata.study.tables import build, load_results
 
     config = REPO / "experiments" / "thesis-no-music.toml"
     empty = run(config, store, tmp_path / "none")

@@ -15,18 +15,18 @@ import pytest
 from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.compute.motion_representations import KNOWN_REPRESENTATIONS
 from dancedata.errors import InputError
-from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.family import (
+from dancedata.featurize.families.motion_base import MotionFamily
+from dancedata.featurize.family import (
     ArraySpec,
     Family,
     register_family,
     registered,
     run_order,
 )
-from dancedata.pipeline.family_settings import AudioSettings, MotionSettings, cli_settings
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.motion_family_base import MotionFamily
-from dancedata.pipeline.schema_arrays import SCHEMA_PATH, generated_schema_text
+from dancedata.featurize.family_settings import AudioSettings, MotionSettings, cli_settings
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.schema_arrays import SCHEMA_PATH, generated_schema_text
+from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
 from dancedata.synth.aist import synth_aist
@@ -149,10 +149,10 @@ def test_committed_schema_arrays_are_the_generated_ones() -> None:
     committed = SCHEMA_PATH.read_text(encoding="utf-8")
     assert generated_schema_text(committed) == committed, (
         "schemas/store.schema.json differs from the declared arrays: run "
-        "python -m dancedata.pipeline.schema_arrays"
+        "python -m dancedata.featurize.schema_arrays"
     )
     check = subprocess.run(
-        [sys.executable, "-m", "dancedata.pipeline.schema_arrays", "--check"],
+        [sys.executable, "-m", "dancedata.featurize.schema_arrays", "--check"],
         capture_output=True,
         text=True,
         cwd=ROOT,
@@ -168,13 +168,13 @@ def test_schema_check_fails_on_a_hand_edited_array(tmp_path: Path) -> None:
                                    '{"dtype": "float64"'))  # fmt: skip
     assert edited.read_text() != text
     check = subprocess.run(
-        [sys.executable, "-m", "dancedata.pipeline.schema_arrays", "--check", str(edited)],
+        [sys.executable, "-m", "dancedata.featurize.schema_arrays", "--check", str(edited)],
         capture_output=True,
         text=True,
     )
     assert check.returncode == 1 and "differ from the declared arrays" in check.stderr
     subprocess.run(
-        [sys.executable, "-m", "dancedata.pipeline.schema_arrays", str(edited)], check=True
+        [sys.executable, "-m", "dancedata.featurize.schema_arrays", str(edited)], check=True
     )
     assert edited.read_text() == text
 

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dancedata.compute.measures import frames_per_measure, measure_bounds
-from dancedata.pipeline.segment import SegmentOptions, measure_rows
+from dancedata.featurize.segment import SegmentOptions, measure_rows
 
 FPS = st.sampled_from([20.0, 24.0, 25.0, 29.97, 30.0, 60.0, 120.0])
 BPM = st.floats(30.0, 300.0)

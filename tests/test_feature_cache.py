@@ -14,16 +14,16 @@ import numpy as np
 import pytest
 
 import dancedata
-from dancedata.feature_cache import (
+from dancedata.featurize.families.audio import AudioSettings
+from dancedata.featurize.feature_cache import (
     ENV_VAR,
     FeatureCache,
     cache_key,
     default_cache_dir,
     library_versions,
 )
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.audio_families import AudioSettings
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
 
@@ -181,7 +181,7 @@ def test_track_tempo_keys_only_the_families_that_use_it(tmp_path) -> None:
     import soundfile as sf
 
     from dancedata.compute.audio_features import AudioFeatureConfig
-    from dancedata.pipeline.audio_track import compute_track_features
+    from dancedata.featurize.audio_track import compute_track_features
     from dancedata.synth.music import synth_dance_music
 
     path = tmp_path / "song.wav"
@@ -214,7 +214,7 @@ def test_decoded_span_keys_the_cache_and_a_wrong_hash_is_never_saved(tmp_path) -
 
     from dancedata.compute.audio_features import AudioFeatureConfig
     from dancedata.errors import InputError
-    from dancedata.pipeline.audio_track import compute_track_features, family_cache_key
+    from dancedata.featurize.audio_track import compute_track_features, family_cache_key
     from dancedata.synth.music import synth_dance_music
 
     cfg, settings = AudioFeatureConfig(), AudioSettings(stems="none")

@@ -3,7 +3,7 @@
 The covariances are then singular and Σ1 Σ2 has exactly-zero eigenvalues, where the matrix square
 root is not differentiable: two correct sqrtm implementations (SciPy versions, or the
 eigendecomposition written here) may disagree by up to ``details["sqrtm_error_bound"]``
-(``dancedata.experiments.metrics.frechet.sqrtm_error_bound``). The exact value is computed
+(``dancedata.metrics.frechet.sqrtm_error_bound``). The exact value is computed
 independently through the symmetric form Tr (Σ1 Σ2)^{1/2} = Σ √eig(H Σ2 H), H = Σ1^{1/2}
 (numpy ``eigh``, no sqrtm).
 """
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy import linalg
 
-from dancedata.experiments.metrics.frechet import (
+from dancedata.metrics.frechet import (
     IMAG_TOLERANCE,
     frechet_distance,
     frechet_distance_from_moments,

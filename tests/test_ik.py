@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dancedata.bvh_ops import world_positions
+from dancedata.compute.bvh_ops import world_positions
 from dancedata.compute.fk import forward_kinematics
 from dancedata.compute.ik import (
     IK_METHOD,
@@ -31,10 +31,10 @@ from dancedata.compute.ik import (
     solve_rotations,
 )
 from dancedata.errors import InputError
+from dancedata.featurize.families.motion import MotionBatch, MotionSettings
+from dancedata.featurize.families.motion_ik import RotationsFromPositionsFamily
 from dancedata.io.bvh import read_bvh
 from dancedata.io.openpose import BODY_25, COCO_18
-from dancedata.pipeline.motion_families import MotionBatch, MotionSettings
-from dancedata.pipeline.motion_families_ik import RotationsFromPositionsFamily
 from dancedata.store.reader import VersionReader
 from tests.helpers import run_cli
 

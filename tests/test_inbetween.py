@@ -14,7 +14,7 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from dancedata.errors import InputError
-from dancedata.experiments.bezier import (
+from dancedata.methods.bezier import (
     BezierTrainMean,
     bernstein3,
     bezier_eval,
@@ -22,9 +22,9 @@ from dancedata.experiments.bezier import (
     bezier_reconstruction,
     linear_channels,
 )
-from dancedata.experiments.inbetween import linear_slerp, segment_map
-from dancedata.experiments.keyframes import even_indices
-from dancedata.experiments.reconstruction_error import mse_euler75
+from dancedata.methods.inbetween import linear_slerp, segment_map
+from dancedata.methods.keyframes import even_indices
+from dancedata.metrics.reconstruction_error import mse_euler75
 
 
 def wxyz(rotation: Rotation) -> np.ndarray:
@@ -267,13 +267,13 @@ def test_mse_euler75_convention() -> None:
 def test_even_slerp_mse_on_the_real_aist_motions(real_data: Path) -> None:
     """even + linear_slerp, euler75, XYZ, raw angles, pooled over the 4 real sequences (27
     measures from the BPM of each music id): the spec's 0.336 / 0.209 / 0.084 within 1e-3."""
-    from dancedata.aist_names import music_bpm, parse_sequence_name
     from dancedata.compute.measures import measure_bounds
     from dancedata.compute.motion_representations import (
         continue_quat_signs,
         representations_from_axis_angle,
     )
     from dancedata.io.aist import read_motion
+    from dancedata.io.aist_names import music_bpm, parse_sequence_name
 
     paths = sorted((real_data / "aist" / "motions").glob("*.pkl"))
     assert len(paths) == 4

@@ -12,10 +12,10 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from dancedata.errors import InputError
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.segment import SegmentOptions, segment
 from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
 from dancedata.io.bvh import BvhClip, BvhSkeleton, read_bvh, write_bvh
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.segment import SegmentOptions, segment
 from dancedata.store.reader import VersionReader
 from dancedata.store.validate import validate_store
 from tests.helpers import run_cli

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dancedata.bvh_ops import world_positions
+from dancedata.compute.bvh_ops import world_positions
 from dancedata.io.bvh import BvhClip, BvhSkeleton, read_bvh, write_bvh
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
@@ -427,10 +427,10 @@ def test_export_after_featurize_writes_the_source_channels(
     """featurize keeps the ingested Euler channels (the file's triples and branch), so the
     exported channels stay within the documented 7e-6 degrees of the file's (float32 radians),
     near gimbal lock and where the file winds past 180 degrees alike."""
+    from dancedata.export.bvh import BvhExportOptions, export_bvh
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
     from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
     from dancedata.io.bvh import euler_degrees
-    from dancedata.pipeline.export_bvh import BvhExportOptions, export_bvh
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
 
     source = real_data / "bvh" / f"{name}.bvh"
     store = tmp_path / "store"

@@ -20,8 +20,8 @@ from scipy.spatial.transform import Rotation
 
 import dancedata
 from dancedata.errors import InputError
-from dancedata.experiments.evaluate_inputs import fact225_rows
 from dancedata.ingest.generated import GeneratedIngestOptions, ingest_generated
+from dancedata.metrics.evaluate_inputs import fact225_rows
 from tests.helpers import run_cli
 
 FPS = 60.0

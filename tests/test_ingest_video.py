@@ -17,7 +17,7 @@ import soundfile as sf
 import dancedata
 from dancedata.errors import InputError, StoreError
 from dancedata.ingest.video import VideoIngestOptions, ingest_video
-from dancedata.ingest.video_poses import PoseSettings
+from dancedata.ingest.video.poses import PoseSettings
 from dancedata.io.openpose import BODY_25, COCO_18
 from dancedata.store.layout import StoreLayout
 from tests.helpers import importorskip_unless_ci, run_cli

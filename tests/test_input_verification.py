@@ -18,10 +18,10 @@ import pytest
 import soundfile as sf
 
 from dancedata.errors import InputError
-from dancedata.feature_cache import FeatureCache
+from dancedata.featurize.families.audio_base import AudioSettings
+from dancedata.featurize.feature_cache import FeatureCache
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.audio_family_base import AudioSettings
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
 from dancedata.synth.aist import synth_aist

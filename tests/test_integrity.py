@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.segment import SegmentOptions, segment
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.segment import SegmentOptions, segment
 from dancedata.store.checksums import sha256_file
 from dancedata.store.integrity import CHECKSUMS_FILE, data_files, describe_file, load_record
 from dancedata.store.validate import validate_store

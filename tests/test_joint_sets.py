@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from dancedata.ingest.video import ingest_video
-from dancedata.ingest.video_poses import SKELETONS, skeleton_for_joints
+from dancedata.ingest.video.poses import SKELETONS, skeleton_for_joints
 from dancedata.io.joint_sets import H36M_17, HMR_19, LIFTER_SETS, SPIN_24
 from dancedata.store.reader import VersionReader
 from tests.test_ingest_video import options

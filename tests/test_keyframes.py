@@ -16,19 +16,19 @@ import pytest
 from scipy.signal import find_peaks
 
 from dancedata.errors import InputError
-from dancedata.experiments.keyframes import (
+from dancedata.methods.keyframes import (
     KeyframeParams,
     canonical_strategy,
     dp_keyframes,
     even_keyframes,
     peak_keyframes,
 )
-from dancedata.experiments.keyframes_dp import (
+from dancedata.methods.keyframes_dp import (
     dp_keyframes_batch,
     segment_error_table,
     segment_errors,
 )
-from dancedata.experiments.keyframes_peaks import local_maxima, peak_keyframes_batch
+from dancedata.methods.keyframes_peaks import local_maxima, peak_keyframes_batch
 
 # ----------------------------------------------------------------------------------- even
 
@@ -258,7 +258,7 @@ def test_dp_cost_equals_brute_force_over_every_subset(distance: str, combine: st
 
 @pytest.mark.parametrize("combine", ["max", "sum"])
 def test_dp_engines_agree_with_ties(combine: str) -> None:
-    from dancedata.experiments.keyframes_dp import dp_tables
+    from dancedata.methods.keyframes_dp import dp_tables
 
     x = np.random.default_rng(7).normal(size=(20, 40, 3)).cumsum(axis=1)
     x[:5, 10:25] = x[:5, 10:11]  # still stretches: many equal (zero) segment errors
@@ -306,9 +306,9 @@ def test_bad_parameters_are_one_line_errors() -> None:
 
 @pytest.fixture(scope="module")
 def small_store(tmp_path_factory) -> Path:
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
+    from dancedata.featurize.segment import SegmentOptions, segment
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-    from dancedata.pipeline.segment import SegmentOptions, segment
     from dancedata.synth.aist import synth_aist
 
     root = tmp_path_factory.mktemp("keyframes")
@@ -323,8 +323,8 @@ def small_store(tmp_path_factory) -> Path:
 @pytest.mark.slow
 def test_keyframes_command_writes_a_version_with_every_strategy(small_store: Path) -> None:
     import dancedata
-    from dancedata.pipeline.keyframes import KeyframesOptions, keyframes, read_keyframes
     from dancedata.store.validate import validate_store
+    from dancedata.study.keyframes import KeyframesOptions, keyframes, read_keyframes
 
     options = KeyframesOptions(
         strategies=["even", "onset", "stems", "nmfd", "dp"], n_keyframes=[3, 5, 9]
@@ -417,7 +417,7 @@ def test_keyframes_cli_parameters_reach_the_manifest(small_store: Path) -> None:
 
 @pytest.mark.slow
 def test_measures_too_short_for_an_n_are_skipped_and_reported(small_store: Path) -> None:
-    from dancedata.pipeline.keyframes import KeyframesOptions, keyframes
+    from dancedata.study.keyframes import KeyframesOptions, keyframes
 
     result = keyframes(small_store, KeyframesOptions(strategies=["even"], n_keyframes=[3, 10_000]))
     assert result.counts["runs"]["even@10000"] == 0
@@ -433,8 +433,8 @@ def test_non_finite_motion_or_curves_are_one_line_errors(small_store: Path, tmp_
 
     import zarr
 
-    from dancedata.pipeline.keyframes import KeyframesOptions, keyframes
     from dancedata.store.reader import VersionReader
+    from dancedata.study.keyframes import KeyframesOptions, keyframes
 
     store = tmp_path / "damaged"
     shutil.copytree(small_store, store)  # a real copy: the fixture's files stay as they are
@@ -456,9 +456,9 @@ def test_a_keyframe_run_feeds_the_in_betweeners(small_store: Path) -> None:
     """Table → KeyframeRun → SegmentMap → linear_slerp equals even keyframes + SLERP computed
     measure by measure from the loader's views."""
     import dancedata
-    from dancedata.experiments.inbetween import linear_slerp
-    from dancedata.experiments.reconstruction_error import mse_euler75
-    from dancedata.pipeline.keyframes import KeyframesOptions, keyframe_run, keyframes
+    from dancedata.methods.inbetween import linear_slerp
+    from dancedata.metrics.reconstruction_error import mse_euler75
+    from dancedata.study.keyframes import KeyframesOptions, keyframe_run, keyframes
 
     result = keyframes(small_store, KeyframesOptions(strategies=["even", "dp"], n_keyframes=[5]))
     run = keyframe_run(small_store, strategy="even", n_keyframes=5)
@@ -477,7 +477,7 @@ def test_a_keyframe_run_feeds_the_in_betweeners(small_store: Path) -> None:
     for m in measures:
         x = store.view(m["seq_id"], "thesis_euler_75")[m["frame_start"] : m["frame_stop"]]
         q = store.motion(m["seq_id"], "quat")[m["frame_start"] : m["frame_stop"]]
-        from dancedata.experiments.inbetween import segment_map
+        from dancedata.methods.inbetween import segment_map
 
         one = segment_map([0], [len(x)], even_keyframes(len(x), 5).indices[None])
         r = linear_slerp(q, x[:, :3], one, "XYZ", truth_euler=x[:, 3:].reshape(len(x), 24, 3))
@@ -492,10 +492,10 @@ def test_a_keyframe_run_feeds_the_in_betweeners(small_store: Path) -> None:
 def test_dp_on_a_real_measure_matches_the_spec_sanity_check(real_data: Path) -> None:
     """EXPERIMENTS.md §8: gJS_sFM_cAll_d02_mJS4_ch09, measure 3 (L = 120 at 120 BPM), euler75
     rows (XYZ, float32 as stored): the keyframes the spec's independent script found."""
-    from dancedata.aist_names import music_bpm, parse_sequence_name
     from dancedata.compute.measures import measure_bounds
     from dancedata.compute.motion_representations import representations_from_axis_angle
     from dancedata.io.aist import read_motion
+    from dancedata.io.aist_names import music_bpm, parse_sequence_name
 
     path = real_data / "aist" / "motions" / "gJS_sFM_cAll_d02_mJS4_ch09.pkl"
     motion = read_motion(path)

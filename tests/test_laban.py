@@ -17,7 +17,7 @@ from dancedata.compute.laban import (
     window_frames,
 )
 from dancedata.compute.motion_features import angular_acceleration, angular_jerk
-from dancedata.experiments.metrics.laban import laban_effort_distance
+from dancedata.metrics.laban import laban_effort_distance
 
 
 def _brute(positions: np.ndarray, fps: float, window: int):

@@ -11,15 +11,15 @@ import pytest
 
 import dancedata
 from dancedata.errors import DancedataError, StoreError
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.segment import SegmentOptions, segment
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.segment import SegmentOptions, segment
 from dancedata.store.layout import StoreLayout
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
 
 torch = pytest.importorskip("torch")
-from dancedata.torch_data import MeasureDataset, SecondsDataset  # noqa: E402
+from dancedata.read.torch_data import MeasureDataset, SecondsDataset  # noqa: E402
 
 # slow: three featurized stores (all, partial, no music)
 pytestmark = pytest.mark.slow
@@ -52,7 +52,7 @@ def _store(raw, root, music: str, audio: bool):
             wav.unlink()
     store = root / f"store-{music}"
     ingest_aist(store, src, AistIngestOptions(allow_missing_music=music != "all"))
-    from dancedata.pipeline.audio_families import AudioSettings
+    from dancedata.featurize.families.audio import AudioSettings
 
     featurize(store, FeaturizeOptions(audio=audio, audio_settings=AudioSettings(stems="none")))
     segment(store, SegmentOptions())
@@ -242,7 +242,7 @@ def test_segment_warns_for_the_sequences_without_a_bpm(full, tmp_path):
     table = table.set_column(
         index, table.schema.field(index), pa.array(bpm, table.schema.field(index).type)
     )
-    from dancedata.pipeline.segment import check_measures, measure_rows
+    from dancedata.featurize.segment import check_measures, measure_rows
 
     rows = measure_rows(table.to_pylist(), SegmentOptions(beats_per_measure=2))
     assert rows and all(r["seq_id"] != seq0 for r in rows)

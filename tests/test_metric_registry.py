@@ -21,8 +21,8 @@ from typer.testing import CliRunner
 
 import dancedata
 from dancedata.errors import InputError
-from dancedata.experiments.evaluate import EvaluateParams
-from dancedata.experiments.metric_registry import (
+from dancedata.featurize.family_settings import cli_settings, setting
+from dancedata.study.metric_registry import (
     Metric,
     MetricInputs,
     ScoringSettings,
@@ -36,7 +36,7 @@ from dancedata.experiments.metric_registry import (
     unit_range_outputs,
     unregister_metric,
 )
-from dancedata.pipeline.family_settings import cli_settings, setting
+from dancedata.study.scoring import EvaluateParams
 from tests.helpers import run_cli
 
 # The names evaluate listed (and recorded under "metrics") before the registry existed.
@@ -163,7 +163,7 @@ class ToyMetric(Metric):
     settings_type = ToySettings
 
     def compute(self, inputs: MetricInputs, settings: ToySettings) -> list[Any]:
-        from dancedata.experiments.metrics.result import mean_over_units
+        from dancedata.metrics.result import mean_over_units
 
         seqs = inputs.usable(self.outputs, "positions")
         if not seqs:
@@ -241,7 +241,7 @@ def test_a_toy_metric_registered_in_a_test_is_an_option_and_a_result(
 
 
 def test_experiment_config_names_the_registered_experiment_metrics(tmp_path: Path) -> None:
-    from dancedata.experiments.config import build_config
+    from dancedata.study.config import build_config
 
     config = build_config({"rows": ["even+linear_slerp"], "metrics": {"names": ["pfc", "mse"]}})
     assert config.metrics == ["pfc", "mse"]

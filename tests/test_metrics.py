@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from dancedata.experiments.metrics import (
+from dancedata.metrics import (
     bas_msd,
     beat_counts,
     diversity,
@@ -19,9 +19,9 @@ from dancedata.experiments.metrics import (
     mean_over_units,
     mse,
 )
-from dancedata.experiments.metrics.fpd import pose_frames, pose_triples
-from dancedata.experiments.metrics.frechet import moments
-from dancedata.experiments.reconstruction_error import mse_euler75
+from dancedata.metrics.fpd import pose_frames, pose_triples
+from dancedata.metrics.frechet import moments
+from dancedata.metrics.reconstruction_error import mse_euler75
 
 # ----------------------------------------------------------------------------------------- mse
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dancedata.experiments.metrics.beats import bas_mint
+from dancedata.metrics.beats import bas_mint
 from tests.helpers import run_cli
 from tests.test_evaluate import SPLIT, fact_rows, model_path, noisy_motion, store  # noqa: F401
 from tests.test_metrics_reference import (
@@ -60,7 +60,7 @@ def test_whole_track_mint_equals_mint_generated_path_where_motion_span_differs()
 
 def test_bas_beats_is_checked() -> None:
     from dancedata.errors import InputError
-    from dancedata.experiments.evaluate import EvaluateParams
+    from dancedata.study.scoring import EvaluateParams
 
     with pytest.raises(ValueError, match="beats must be one of motion_span, whole_track_mint"):
         bas_mint(np.zeros((30, 24, 3)), np.array([3]), beats="all")  # type: ignore[arg-type]

@@ -9,8 +9,8 @@ import pytest
 
 from dancedata.compute.motion_features import kinetic_features
 from dancedata.errors import InputError
-from dancedata.experiments.evaluate import EvaluateParams
-from dancedata.experiments.metrics.fid import fid, motion_feature_matrix, with_origin
+from dancedata.metrics.fid import fid, motion_feature_matrix, with_origin
+from dancedata.study.scoring import EvaluateParams
 
 
 def _units(seed: int, n: int = 6, frames: int = 90, joints: int = 24) -> list[np.ndarray]:

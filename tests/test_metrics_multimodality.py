@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dancedata.experiments.metrics.multimodality import multimodality
+from dancedata.metrics.multimodality import multimodality
 from tests.helpers import run_cli
 from tests.test_evaluate import SPLIT, fact_rows, model_path, noisy_motion, store  # noqa: F401
 
@@ -77,8 +77,8 @@ def test_evaluate_generations_end_to_end(
 ) -> None:
     import dancedata
     from dancedata.compute.smpl_joints import smpl_joint_positions
-    from dancedata.experiments.metrics import motion_feature_matrix
     from dancedata.io.smpl_model import load_smpl_model
+    from dancedata.metrics import motion_feature_matrix
 
     gens = tmp_path / "gens"
     runs = {}
@@ -118,7 +118,7 @@ def test_evaluate_generations_end_to_end(
 
 @pytest.mark.slow
 def test_evaluate_without_generations_says_why(store: Path, tmp_path: Path) -> None:  # noqa: F811
-    from dancedata.experiments.evaluate import EvalSequence, EvaluateParams, evaluate_sequences
+    from dancedata.study.scoring import EvalSequence, EvaluateParams, evaluate_sequences
 
     rng = np.random.default_rng(3)
     walk = [np.cumsum(rng.normal(0, 0.01, (100, 24, 3)), axis=0) for _ in range(3)]
@@ -133,7 +133,7 @@ def test_evaluate_without_generations_says_why(store: Path, tmp_path: Path) -> N
     gens = {"m": [w + rng.normal(0, 0.01, w.shape) for w in walk]}
     evaluation = evaluate_sequences(seqs, EvaluateParams(), generations=gens)
     mm = {r.name: r for r in evaluation.results}["mm_k"]
-    from dancedata.experiments.metrics import motion_feature_matrix
+    from dancedata.metrics import motion_feature_matrix
 
     reference = motion_feature_matrix(walk, "kinetic")
     feats = {"m": motion_feature_matrix(gens["m"], "kinetic")}

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from dancedata.experiments.metrics.pfc import pfc, pfc_clip, pfc_clips
+from dancedata.metrics.pfc import pfc, pfc_clip, pfc_clips
 
 
 def edge_pfc(clips: list[np.ndarray]) -> float:

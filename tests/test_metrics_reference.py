@@ -4,7 +4,7 @@ result records, which is at float64 rounding unless there are fewer units than d
 
 Each ``ref_*`` function below transcribes one public function (file and function named in its
 docstring) into a plain loop, kept as close to the original as possible; it shares no code with
-``dancedata.experiments.metrics``. Deviations forced by today's libraries are noted in place.
+``dancedata.metrics``. Deviations forced by today's libraries are noted in place.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from scipy import linalg
 from scipy.ndimage import gaussian_filter
 from scipy.signal import argrelextrema
 
-from dancedata.experiments.metrics import (
+from dancedata.metrics import (
     bas_bailando,
     bas_mint,
     diversity,
@@ -220,7 +220,7 @@ SEEDS = range(20)
 def fd_tolerance(reference: float, ours) -> float:
     """1e-6 relative, plus twice the sqrtm error bound of our result: with fewer units than
     dimensions each side's Tr sqrtm may be off the exact value by that bound, and by a
-    different amount on another SciPy (dancedata.experiments.metrics.frechet)."""
+    different amount on another SciPy (dancedata.metrics.frechet)."""
     return 1e-6 * max(1.0, abs(reference)) + 2.0 * ours.details["sqrtm_error_bound"]
 
 

@@ -16,16 +16,16 @@ from scipy.spatial.transform import Rotation
 
 import dancedata
 from dancedata.compute.motion_features import geometric_features, kinetic_features
+from dancedata.compute.smpl import SMPL_PARENTS
 from dancedata.errors import InputError
+from dancedata.featurize.featurize import FeaturizeOptions
+from dancedata.featurize.featurize import featurize as run_featurize
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
 from dancedata.ingest.video import VideoIngestOptions, ingest_video
-from dancedata.ingest.video_poses import PoseSettings
+from dancedata.ingest.video.poses import PoseSettings
 from dancedata.io.bvh import BvhClip, read_bvh, write_bvh
 from dancedata.io.smpl_model import load_smpl_model
-from dancedata.pipeline.featurize import FeaturizeOptions
-from dancedata.pipeline.featurize import featurize as run_featurize
-from dancedata.smpl import SMPL_PARENTS
 from dancedata.store.reader import VersionReader
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli

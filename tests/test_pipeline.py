@@ -14,9 +14,9 @@ from scipy.spatial.transform import Rotation
 
 import dancedata
 from dancedata.compute.audio_features import AudioFeatureConfig
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.segment import SegmentOptions, segment
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.segment import SegmentOptions, segment
 from dancedata.store.layout import StoreLayout
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist

@@ -136,7 +136,7 @@ def test_a_writer_based_on_a_version_that_is_no_longer_latest_refuses(store):
     an append): once another writer has committed, the write is refused with one line instead
     of dropping that writer's version; the store is left as it was."""
     from dancedata.errors import StoreError
-    from dancedata.pipeline.segment import SegmentOptions, segment
+    from dancedata.featurize.segment import SegmentOptions, segment
     from dancedata.store.writer import VersionWriter
 
     read_before_the_lock = StoreLayout(store).latest()

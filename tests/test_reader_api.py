@@ -1,4 +1,4 @@
-"""The thin reader's public API (:mod:`dancedata.sequence_reader`), and the rule that code outside
+"""The thin reader's public API (:mod:`dancedata.read.sequence_reader`), and the rule that code outside
 the reader (views, viz, pipeline, CLI, benches, examples) uses only that API, never the private
 members of the reader classes (issue 15, item 5)."""
 
@@ -12,7 +12,11 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 
 # The reader itself: the classes whose private members nobody else may touch.
-READER_FILES = ("dancedata/sequence_reader.py", "dancedata/loader.py", "dancedata/store/reader.py")
+READER_FILES = (
+    "dancedata/read/sequence_reader.py",
+    "dancedata/read/loader.py",
+    "dancedata/store/reader.py",
+)
 # Code that must use the public API only.
 CHECKED_DIRS = ("dancedata", "cli", "bench", "examples")
 # (file, expression) still reaching into the reader, each with who removes it. May only shrink:
@@ -70,13 +74,15 @@ def test_the_private_name_scan_sees_the_reader_internals() -> None:
 def test_nothing_outside_the_reader_touches_its_private_members() -> None:
     found = _private_accesses(_private_names())
     new = sorted(found - KNOWN_PRIVATE_ACCESSES)
-    assert not new, f"use the public reader API (dancedata/sequence_reader.py) instead of: {new}"
+    assert not new, (
+        f"use the public reader API (dancedata/read/sequence_reader.py) instead of: {new}"
+    )
     stale = sorted(KNOWN_PRIVATE_ACCESSES - found)
     assert not stale, f"fixed, delete from KNOWN_PRIVATE_ACCESSES: {stale}"
 
 
 def test_the_old_private_aliases_are_gone() -> None:
-    from dancedata.loader import DanceStore
+    from dancedata.read.loader import DanceStore
 
     for alias in ("_full", "_no_music_reason"):
         assert not hasattr(DanceStore, alias), alias
@@ -102,7 +108,7 @@ def store_missing_a_song(tmp_path_factory) -> tuple[Path, str]:
 def test_music_track_is_the_music_table_row(store_missing_a_song: tuple[Path, str]) -> None:
     import pyarrow.parquet as pq
 
-    from dancedata.loader import DanceStore
+    from dancedata.read.loader import DanceStore
 
     store, missing = store_missing_a_song
     ds = DanceStore(store)

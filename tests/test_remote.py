@@ -11,9 +11,9 @@ import pytest
 
 import dancedata
 from dancedata.errors import StoreError
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.segment import SegmentOptions, segment
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.segment import SegmentOptions, segment
 from dancedata.store.layout import StoreLayout
 from dancedata.store.validate import validate_store
 from dancedata.store.writer import VersionWriter
@@ -110,7 +110,7 @@ def test_one_writer_at_a_time(stores):
 
 
 def test_featurize_on_s3_resumes_after_a_crash(stores, monkeypatch, tmp_path):
-    import dancedata.pipeline.featurize as featurize_module
+    import dancedata.featurize.featurize as featurize_module
 
     url = f"s3://{BUCKET}/stores/resume"
     ingest_aist(url, stores["raw"], AistIngestOptions())

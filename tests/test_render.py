@@ -259,7 +259,7 @@ def test_smpl_joints_with_a_model_file(aist_store: Path, tmp_path: Path) -> None
     assert len(decode(out)["frames"]) == 30
     # Without the model, the SMPL source draws the built-in edge_smpl_offsets skeleton, named
     # in the panel's label (its numbers: tests/test_smpl_skeleton.py).
-    from dancedata.smpl_skeletons import smpl_skeleton
+    from dancedata.compute.smpl_skeletons import smpl_skeleton
 
     builtin = load_skeleton(ds, seq, source="smpl")
     assert builtin.source == "smpl" and "edge_smpl_offsets" in builtin.label
@@ -447,7 +447,7 @@ def test_generated_fact_rows_and_smpl_pickles_match_the_stored_motion(
 def test_coco17_figure_has_shoulder_and_hip_lines(aist_store: Path) -> None:
     """COCO-17 parents both shoulders on the nose and each hip on its shoulder: the renderer adds
     the shoulder line (5-6) and the hip line (11-12), drawn where the projection puts them."""
-    from dancedata.smpl import COCO17_KEYPOINTS
+    from dancedata.compute.smpl import COCO17_KEYPOINTS
 
     seq = first_seq(aist_store)
     renderer = SkeletonRenderer(aist_store, seq, RenderOptions())

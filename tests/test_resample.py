@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation, Slerp
 
-from dancedata.bvh_ops import local_rotmats, resample_clip
+from dancedata.compute.bvh_ops import local_rotmats, resample_clip
 from dancedata.compute.resample import (
     decimation_step,
     resample_motion,

@@ -48,7 +48,7 @@ from dancedata.compute.rotations import (
     rotmat_to_rot6d_rows,
 )
 from dancedata.errors import InputError
-from dancedata.pipeline.resample_store import ResampleOptions, check_fps, resample
+from dancedata.featurize.resample_store import ResampleOptions, check_fps, resample
 from dancedata.store.reader import VersionReader
 from tests.helpers import run_cli
 

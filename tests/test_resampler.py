@@ -18,9 +18,9 @@ import soundfile as sf
 import zarr
 
 from dancedata.compute.audio_features import AudioFeatureConfig
+from dancedata.featurize.audio_track import family_cache_key
+from dancedata.featurize.families.audio_base import AudioSettings
 from dancedata.io.audio_decode import decode_mono
-from dancedata.pipeline.audio_family_base import AudioSettings
-from dancedata.pipeline.audio_track import family_cache_key
 from dancedata.synth.music import synth_dance_music
 from tests.helpers import run_cli
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from dancedata.errors import InputError
-from dancedata.safe_pickle import (
+from dancedata.io.safe_pickle import (
     PickleLimits,
     UnsafePickleError,
     load_restricted,
@@ -337,7 +337,7 @@ def test_malformed_pickles_are_one_unreadable_line(data, expect):
 _CHILD = """
 import resource, sys
 from dancedata.errors import DancedataError
-from dancedata.safe_pickle import load_restricted
+from dancedata.io.safe_pickle import load_restricted
 try:
     load_restricted(sys.argv[1])
     code = 0

@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 
 import dancedata
+import dancedata.featurize.featurize as featurize_module
 import dancedata.ingest.aist as aist_module
-import dancedata.pipeline.featurize as featurize_module
+from dancedata.featurize.featurize import FeaturizeOptions, featurize
+from dancedata.featurize.segment import SegmentOptions, segment
+from dancedata.featurize.tasks import plan_motion_tasks as plan_motion_units
 from dancedata.ingest import resumable_reads as reads_module
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-from dancedata.pipeline.featurize_tasks import plan_motion_tasks as plan_motion_units
-from dancedata.pipeline.segment import SegmentOptions, segment
 from dancedata.store.arrays import CHUNK_FRAMES
 from dancedata.store.layout import StoreLayout
 from dancedata.store.validate import validate_store
@@ -60,7 +60,7 @@ def fresh_store(raw: Path, store: Path) -> Path:
 
 @pytest.fixture(autouse=True)
 def cold_feature_cache(tmp_path, monkeypatch):
-    """Every run computes its audio: the per-track feature cache (dancedata.feature_cache)
+    """Every run computes its audio: the per-track feature cache (dancedata.featurize.feature_cache)
     starts empty in each test, so engines are compared on what they compute."""
     monkeypatch.setenv("DANCEDATA_CACHE", str(tmp_path / "feature-cache"))
 

@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from dancedata.compute.smpl import SMPL_PARENTS
 from dancedata.compute.smpl_skeleton import (
     EDGE_SMPL_OFFSETS_M,
     EDGE_SMPL_SKELETON,
     SMPL24_PARENTS,
 )
+from dancedata.compute.smpl_skeletons import skeleton_name, smpl_skeleton
 from dancedata.errors import InputError
-from dancedata.smpl import SMPL_PARENTS
-from dancedata.smpl_skeletons import skeleton_name, smpl_skeleton
 from dancedata.store.reader import VersionReader
 from tests.helpers import run_cli
 

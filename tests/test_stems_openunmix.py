@@ -19,9 +19,9 @@ from hypothesis import strategies as st
 from dancedata.compute.stems import STEM_NAMES
 from dancedata.compute.stems import openunmix as umx
 from dancedata.errors import DancedataError, InputError
+from dancedata.featurize.stem_separation import separate
 from dancedata.io import openunmix_model as umxio
 from dancedata.io import openunmix_weights as umxw
-from dancedata.pipeline.stem_separation import separate
 from tests.helpers import importorskip_unless_ci
 
 # slow: OpenUnmix (torch) source separation

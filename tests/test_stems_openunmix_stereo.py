@@ -23,9 +23,9 @@ from dancedata.compute.stem_features import all_stem_features
 from dancedata.compute.stems import STEM_NAMES
 from dancedata.compute.stems import openunmix as umx
 from dancedata.errors import InputError
+from dancedata.featurize import stem_separation
 from dancedata.io import openunmix_model as umxio
 from dancedata.io import openunmix_weights as umxw
-from dancedata.pipeline import stem_separation
 from tests.helpers import importorskip_unless_ci
 
 # slow: OpenUnmix (torch) source separation through featurize
@@ -293,7 +293,7 @@ def test_featurize_cli_reads_an_openunmix_model_folder(folder, tmp_path) -> None
     music is a stereo 44.1 kHz file: the stored per-stem features are those of openunmix's own
     separation of the file, and the folder's settings and the separation are recorded."""
     import dancedata
-    from dancedata.pipeline.audio_families_stems import OPENUNMIX_SEPARATION
+    from dancedata.featurize.families.audio_stems import OPENUNMIX_SEPARATION
     from dancedata.synth.aist import synth_aist
     from tests.helpers import run_cli
 

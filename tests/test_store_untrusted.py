@@ -209,7 +209,7 @@ def test_fps_of_real_stores_pass():
 
 
 def test_skeleton_must_be_a_tree_with_one_root():
-    from dancedata.smpl import SMPL_PARENTS
+    from dancedata.compute.smpl import SMPL_PARENTS
 
     joints = [f"j{i}" for i in range(len(SMPL_PARENTS))]
     good = {"joints": joints, "parents": list(SMPL_PARENTS)}

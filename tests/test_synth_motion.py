@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dancedata.aist_names import music_bpm
 from dancedata.compute.motion_features import beat_align_score_mint, motion_beats_mint
-from dancedata.experiments.metrics import fid
-from dancedata.experiments.metrics.fid import motion_feature_matrix
+from dancedata.compute.smpl_skeletons import smpl_skeleton
 from dancedata.io.aist import read_motion
-from dancedata.smpl_skeletons import smpl_skeleton
+from dancedata.io.aist_names import music_bpm
+from dancedata.metrics import fid
+from dancedata.metrics.fid import motion_feature_matrix
 from dancedata.synth.catalog import FPS, demo_plan, stable_seed
 from dancedata.synth.motion import (
     ACCENT_PEAK_S,

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from dancedata.errors import InputError
-from dancedata.experiments.tables import Cell, _number, _relative, render_table, resolve_table
+from dancedata.study.tables import Cell, _number, _relative, render_table, resolve_table
 from tests.helpers import run_cli
 
 # slow: a 24-sequence demo store through an experiment run

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from dancedata.errors import InputError
-from dancedata.experiments.tables import build, render_table, seed_tables
+from dancedata.study.tables import build, render_table, seed_tables
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "seed-tables.json"
 

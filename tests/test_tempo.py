@@ -121,7 +121,7 @@ def test_tempo_command_text_json_and_errors(tmp_path) -> None:
 
 
 def test_ingest_prints_the_estimate_with_its_half_and_double(tmp_path, capsys) -> None:
-    from dancedata.ingest.video_music import estimate_bpm
+    from dancedata.ingest.video.music import estimate_bpm
 
     y = _clicks(120.0)
     bpm = estimate_bpm(y, TEMPO_SR, tmp_path / "m.wav")

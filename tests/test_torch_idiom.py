@@ -22,8 +22,8 @@ import pytest
 torch = pytest.importorskip("torch")
 from torch.utils.data import DataLoader  # noqa: E402
 
-from dancedata.torch_batching import PadCollate, pad_collate  # noqa: E402
-from dancedata.torch_data import MeasureDataset, SecondsDataset  # noqa: E402
+from dancedata.read.torch_batching import PadCollate, pad_collate  # noqa: E402
+from dancedata.read.torch_data import MeasureDataset, SecondsDataset  # noqa: E402
 from tests.s3_server import moto_s3  # noqa: E402
 
 # slow: DataLoader workers over a featurized store, local and S3
@@ -41,9 +41,9 @@ def raw(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def store(raw, tmp_path_factory) -> Path:
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
+    from dancedata.featurize.segment import SegmentOptions, segment
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-    from dancedata.pipeline.segment import SegmentOptions, segment
 
     path = tmp_path_factory.mktemp("idiom") / "store"
     ingest_aist(path, raw, AistIngestOptions())
@@ -115,8 +115,8 @@ BUCKET = "dance"
 
 @pytest.fixture(scope="module")
 def s3_store(raw) -> str:
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
 
     url = f"s3://{BUCKET}/s"
     with moto_s3(BUCKET):

@@ -16,7 +16,6 @@ import numpy as np
 import pytest
 
 from dancedata.errors import InputError
-from dancedata.experiments.config import build_config, load_config
 from dancedata.io.generated_motion import (
     find_generated_file,
     generated_frame_limit,
@@ -24,7 +23,8 @@ from dancedata.io.generated_motion import (
 )
 from dancedata.io.joints_csv import read_joints_csv
 from dancedata.io.openpose import list_keypoint_files, read_openpose_folder
-from dancedata.seq_ids import seq_id_problem
+from dancedata.store.seq_ids import seq_id_problem
+from dancedata.study.config import build_config, load_config
 from tests.helpers import REPO
 
 ROW = {"rows": ["even+linear_slerp"]}

@@ -88,7 +88,7 @@ def test_wheel_holds_every_module_and_data_file(wheel):
     missing = sorted(_source_modules() - names)
     assert not missing, f"modules missing from the wheel: {missing}"
     assert "dancedata/schemas/store.schema.json" in names
-    assert "dancedata/experiments/seed_tables.json" in names
+    assert "dancedata/study/seed_tables.json" in names
 
 
 def test_clean_venv_with_the_wheel_runs_the_chain(wheel, tmp_path):
@@ -137,7 +137,7 @@ def test_clean_venv_with_the_wheel_runs_the_chain(wheel, tmp_path):
     where = run(
         str(py),
         "-c",
-        "import dancedata, dancedata.views, dancedata.compute.stems; print(dancedata.__file__)",
+        "import dancedata, dancedata.read.views, dancedata.compute.stems; print(dancedata.__file__)",
     )
     assert Path(where.strip()).is_relative_to(venv), where
     cli = str(venv / "bin" / "dancedata")

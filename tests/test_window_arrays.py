@@ -19,14 +19,14 @@ from scipy.spatial.transform import Rotation, Slerp
 import dancedata
 from dancedata.compute.rotations import rot6d_to_rotmat
 from dancedata.errors import InputError, StoreError
-from dancedata.window_augment import Mirror, Yaw, mirror_rows, yaw_rows
-from dancedata.window_dataset import store_rig
+from dancedata.read.window_augment import Mirror, Yaw, mirror_rows, yaw_rows
+from dancedata.read.window_dataset import store_rig
 from tests.helpers import run_cli
 
 torch = pytest.importorskip("torch")
 
-from dancedata.torch_batching import training_loader  # noqa: E402
-from dancedata.torch_data import (  # noqa: E402
+from dancedata.read.torch_batching import training_loader  # noqa: E402
+from dancedata.read.torch_data import (  # noqa: E402
     BeatDataset,
     MeasureDataset,
     PhraseDataset,
@@ -39,11 +39,11 @@ AUDIO = "audio/stft_frames"
 
 @pytest.fixture(scope="module")
 def aist_store(tmp_path_factory) -> Path:
+    from dancedata.featurize.family_settings import AudioSettings
+    from dancedata.featurize.featurize import FeaturizeOptions, featurize
+    from dancedata.featurize.segment import SegmentOptions, segment
+    from dancedata.featurize.stats import StatsOptions, stats
     from dancedata.ingest.aist import AistIngestOptions, ingest_aist
-    from dancedata.pipeline.family_settings import AudioSettings
-    from dancedata.pipeline.featurize import FeaturizeOptions, featurize
-    from dancedata.pipeline.segment import SegmentOptions, segment
-    from dancedata.pipeline.stats import StatsOptions, stats
     from dancedata.synth.aist import synth_aist
 
     root = tmp_path_factory.mktemp("window-arrays")

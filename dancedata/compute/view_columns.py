@@ -1,6 +1,6 @@
 """Assemble a view's frames from its parts: the arrays side by side, FACT's zero columns filled.
 
-A view (:mod:`dancedata.views`) is an ordered list of parts; each part is a (rows, width)
+A view (:mod:`dancedata.read.views`) is an ordered list of parts; each part is a (rows, width)
 float32 array, or None for the six zero columns FACT puts before the root translation. Pure
 numpy: the store reader hands the arrays in.
 """

@@ -58,12 +58,12 @@ from dancedata.ingest.source import (
     StoredArray,
 )
 from dancedata.progress import progress
-from dancedata.seq_ids import check_seq_id
 from dancedata.store.arrays import FrameArrayWriter
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout
+from dancedata.store.seq_ids import check_seq_id
 from dancedata.store.writer import VersionWriter, find_version_with_fingerprint, hold_store_lock
 
 __all__ = ["FrameArrays", "already_ingested", "ingest", "latest_version", "sequence_row"]

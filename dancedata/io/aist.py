@@ -1,6 +1,6 @@
 """Read AIST++ annotation files: motion and keypoint pickles, split lists, ignore list.
 
-Pickles go through the restricted unpickler (see :mod:`dancedata.safe_pickle`): nothing they
+Pickles go through the restricted unpickler (see :mod:`dancedata.io.safe_pickle`): nothing they
 name is executed, and it builds only plain bool/int/float arrays. Every array is checked for
 keys, shapes, dtypes and finite values as read, and again as it will be stored: after the
 conversion (trans = smpl_trans / smpl_scaling, the float32 cast), where a finite float64 such as
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from dancedata.errors import InputError
-from dancedata.safe_pickle import load_restricted
+from dancedata.io.safe_pickle import load_restricted
 
 # Plausible ranges of stored values (module docstring; docs/STORE.md).
 SCALING_RANGE: tuple[float, float] = (0.01, 10_000.0)  # smpl_scaling (smpl_trans units per m)

@@ -14,7 +14,7 @@ import numpy as np
 
 from dancedata.errors import InputError
 from dancedata.io.aist import checked_array
-from dancedata.safe_pickle import load_restricted
+from dancedata.io.safe_pickle import load_restricted
 
 N_KEYPOINTS = 17  # COCO-17
 N_VIEWS = 9  # AIST++ cameras c01..c09

@@ -17,7 +17,7 @@ A folder of generated motion holds one file per sequence, named by sequence id
 * ``positions`` — joint positions (F, J, 3) in metres: a ``.npy`` array, or ``positions`` /
   ``full_pose`` / ``pred_position`` (F, J·3 or J, 3) in a pickle or ``.npz``.
 
-Pickles are read by the restricted unpickler (:mod:`dancedata.safe_pickle`), never by
+Pickles are read by the restricted unpickler (:mod:`dancedata.io.safe_pickle`), never by
 ``pickle.load``; ``.npy``/``.npz`` with ``allow_pickle=False``, except the one pickled ``.npy``
 layout dance generators write, ``np.save(path, dict)`` (Bailando's ``{"pred_position": (F, 72)}``):
 its dict is read by the same restricted unpickler, admitting only that 0-d object array around
@@ -208,10 +208,10 @@ class _ObjectDtype:
 
 
 def _make_dict_unpickler() -> Any:
-    """The restricted unpickler (:mod:`dancedata.safe_pickle`) plus exactly one shape of object
+    """The restricted unpickler (:mod:`dancedata.io.safe_pickle`) plus exactly one shape of object
     array: the 0-d array ``np.save(path, {...})`` writes around a dict (Bailando's outputs),
     which yields the dict itself. Arrays inside the dict are built by the restricted path."""
-    from dancedata import safe_pickle
+    from dancedata.io import safe_pickle
 
     def dtype(*args: Any) -> Any:
         if args[:1] == ("O8",) and len(args) == 3:
@@ -245,7 +245,7 @@ def _read_pickled_npy(path: Path, offset: int) -> dict[str, Any]:
     unpickler; InputError naming the layout and how to convert it for anything else."""
     import io
 
-    from dancedata.safe_pickle import DEFAULT_LIMITS
+    from dancedata.io.safe_pickle import DEFAULT_LIMITS
 
     convert = (
         "a pickled .npy must be np.save of a dict of arrays (Bailando writes "
@@ -295,7 +295,7 @@ def read_generated_arrays(path: Path, max_frames: int | None = None) -> dict[str
         reason = f"{type(exc).__name__}: {str(exc)[:200]}"
         raise InputError(f"cannot read as a numpy file ({reason})", path) from None
     if suffix == ".pkl":
-        from dancedata.safe_pickle import load_restricted
+        from dancedata.io.safe_pickle import load_restricted
 
         data = load_restricted(path)
         if isinstance(data, np.ndarray):

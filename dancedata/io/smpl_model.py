@@ -15,7 +15,7 @@ issue 15 item 3). AIST++ stores no betas, so betas default to zeros. Lengths are
 File formats:
 
 * ``.npz``: read with numpy (``allow_pickle=False``); arrays must be numeric.
-* ``.pkl``: read by the restricted unpickler of :mod:`dancedata.safe_pickle`, which never runs
+* ``.pkl``: read by the restricted unpickler of :mod:`dancedata.io.safe_pickle`, which never runs
   code named in the file. Python 2 and 3 pickles of numpy arrays and of scipy sparse matrices
   (the official files store ``J_regressor`` as ``csc_matrix``) are accepted: sparse matrices are
   rebuilt as dense arrays from their stored index arrays without importing scipy's classes.
@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from dancedata.errors import InputError
-from dancedata.safe_pickle import _RestrictedUnpickler
+from dancedata.io.safe_pickle import _RestrictedUnpickler
 
 __all__ = [
     "SMPL_MODEL_ENV",

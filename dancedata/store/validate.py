@@ -17,11 +17,11 @@ from typing import Any
 import numpy as np
 
 from dancedata.errors import StoreError
-from dancedata.seq_ids import seq_id_problem
 from dancedata.store.contract import store_schema
 from dancedata.store.integrity import verify_store
 from dancedata.store.layout import MANIFEST_FILE, ZARR_DIR, StoreLayout
 from dancedata.store.reader import VersionReader, metadata_problems
+from dancedata.store.seq_ids import seq_id_problem
 from dancedata.store.untrusted import MANIFEST_LIMIT, read_json
 
 

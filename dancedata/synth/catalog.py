@@ -13,7 +13,7 @@ import math
 import zlib
 from dataclasses import dataclass, replace
 
-from dancedata.aist_names import GENRES, HELD_OUT_MUSIC_IDS, music_bpm
+from dancedata.io.aist_names import GENRES, HELD_OUT_MUSIC_IDS, music_bpm
 
 FPS = 60.0
 GENRE_ORDER: tuple[str, ...] = tuple(GENRES)  # gBR, gPO, gLO, gMH, gLH, gHO, gWA, gKR, gJS, gJB

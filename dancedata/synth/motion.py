@@ -7,7 +7,7 @@ snare on every beat, a pickup kick on the "and" of beat 4 in odd measures), with
 arrival, a pelvis dip and a head/shoulder accent at each onset. Feet are planted (zero speed, on
 the floor) except while they step, and the root follows the feet: the pelvis sits between them
 and shifts onto the standing foot. The legs are solved by two-bone inverse kinematics on
-:data:`dancedata.smpl.SMPL_REST_OFFSETS_M` so the planted ankles stay put; ankles, feet, wrists
+:data:`dancedata.compute.smpl.SMPL_REST_OFFSETS_M` so the planted ankles stay put; ankles, feet, wrists
 and hands barely rotate, as in AIST++'s fits. Angles radians, lengths metres, y up, floor y = 0.
 How the ranges were calibrated on real AIST++ motion: docs/STORE.md, "The synthetic twin's
 motion".
@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dancedata.compute.camera import rodrigues_to_rotmat
-from dancedata.smpl import SMPL_PARENTS, SMPL_REST_OFFSETS_M
+from dancedata.compute.smpl import SMPL_PARENTS, SMPL_REST_OFFSETS_M
 from dancedata.synth.choreography import beat_position, hit_curve, plan_beats
 from dancedata.synth.styles import style_of
 

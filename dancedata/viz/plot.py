@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dancedata.loader import DanceStore
+from dancedata.read.loader import DanceStore
 from dancedata.viz.extras import require
 from dancedata.viz.plot_data import DEFAULT_JOINTS, SequencePlotData, gather
 
@@ -287,7 +287,7 @@ def sequence_figure(
     stop: int | None = None,
 ) -> Figure:
     """The sequence's figure (matplotlib Figure, Agg canvas). ``store`` is a path or an open
-    :class:`~dancedata.loader.DanceStore`; ``joints`` names the joints of the angle panel
+    :class:`~dancedata.read.loader.DanceStore`; ``joints`` names the joints of the angle panel
     (skeleton names; the most-varying joints when none match); ``start``/``stop`` show only
     motion frames [start, stop)."""
     require("matplotlib", "plotting")

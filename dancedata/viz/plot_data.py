@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from dancedata.errors import DancedataError
-from dancedata.loader import DanceStore
-from dancedata.sequence_reader import SequenceReader
+from dancedata.read.loader import DanceStore
+from dancedata.read.sequence_reader import SequenceReader
 from dancedata.store.reader import VersionReader
 
 STEM_ORDER: tuple[str, ...] = ("drums", "bass", "vocals", "other")

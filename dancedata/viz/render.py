@@ -37,7 +37,7 @@ from dancedata.compute.camera import ViewCamera, screen_axes
 from dancedata.compute.camera import fit_view_camera as fit_camera
 from dancedata.compute.camera import project_orthographic as project
 from dancedata.errors import DancedataError, InputError
-from dancedata.loader import DanceStore, open_store
+from dancedata.read.loader import DanceStore, open_store
 from dancedata.viz.skeleton_draw import (
     FrameLayout,
     MusicTiming,

@@ -363,7 +363,7 @@ def figure_png_base64(fig: Any, dpi: float) -> str:
 
 
 def _gallery(store: str | Path, version: str, seq_ids: list[str], dpi: float) -> str:
-    from dancedata.loader import DanceStore
+    from dancedata.read.loader import DanceStore
     from dancedata.viz.plot import sequence_figure
 
     ds = DanceStore(store, version)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dancedata.smpl import COCO17_KEYPOINTS
+from dancedata.compute.smpl import COCO17_KEYPOINTS
 
 __all__ = [
     "BACKGROUND",

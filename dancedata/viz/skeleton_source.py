@@ -4,7 +4,7 @@ Sources, and the order ``source="auto"`` tries them in:
 
 1. ``smpl``: SMPL joints (24, metres, y-up) posed from ``motion/axis_angle`` and ``motion/trans``
    about an SMPL model file's rest joints (``smpl_model``; :mod:`dancedata.io.smpl_model`) or,
-   without one, the built-in ``edge_smpl_offsets`` skeleton (:mod:`dancedata.smpl_skeletons`).
+   without one, the built-in ``edge_smpl_offsets`` skeleton (:mod:`dancedata.compute.smpl_skeletons`).
    Chosen first when a model is given and the store's skeleton is SMPL-24; without a model,
    after ``keypoints3d`` and ``positions`` (before ``fk`` and ``pose2d``).
 2. ``keypoints3d``: AIST++ COCO-17 keypoints (metres, y-up; NaN where not triangulated).
@@ -29,7 +29,7 @@ import numpy as np
 from dancedata.errors import InputError, StoreError
 
 if TYPE_CHECKING:
-    from dancedata.loader import DanceStore
+    from dancedata.read.loader import DanceStore
 
 __all__ = ["SOURCES", "SkeletonTrack", "load_generated", "load_skeleton"]
 
@@ -78,7 +78,7 @@ def _skeleton_of(store: DanceStore, name: str, fallback: dict[str, Any]) -> dict
 
 
 def _is_smpl(skeleton: dict[str, Any]) -> bool:
-    from dancedata.smpl import SMPL_JOINTS
+    from dancedata.compute.smpl import SMPL_JOINTS
 
     joints = tuple(skeleton.get("joints") or ())
     return joints == SMPL_JOINTS or (skeleton.get("name") == "smpl24" and len(joints) == 24)
@@ -173,7 +173,7 @@ def load_skeleton(
     axis_angle = _slice(store, seq_id, "axis_angle")
     trans = _slice(store, seq_id, "trans")
     if source == "smpl":
-        from dancedata.smpl_skeletons import smpl_skeleton
+        from dancedata.compute.smpl_skeletons import smpl_skeleton
 
         rest = smpl_skeleton(smpl_model)  # a model file wins; else edge_smpl_offsets
         positions = rest.positions(axis_angle, trans)
@@ -225,7 +225,7 @@ def _smpl_generated(
     poses: np.ndarray, trans: np.ndarray, smpl_model: str | Path | None, path: Path
 ) -> np.ndarray:
     """SMPL rotations → joints about the model file's rest joints, else edge_smpl_offsets."""
-    from dancedata.smpl_skeletons import smpl_skeleton
+    from dancedata.compute.smpl_skeletons import smpl_skeleton
 
     poses = np.asarray(poses, dtype=np.float64)
     if poses.ndim < 2 or poses[0].size != 72:
@@ -290,7 +290,7 @@ def load_generated(
         )
     n_joints = positions.shape[1]
     if n_joints == 24:
-        from dancedata.smpl import SMPL_JOINTS, SMPL_PARENTS
+        from dancedata.compute.smpl import SMPL_JOINTS, SMPL_PARENTS
 
         skeleton = {"parents": list(SMPL_PARENTS), "joints": list(SMPL_JOINTS)}
     elif n_joints == len(like.parents):

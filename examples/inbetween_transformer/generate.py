@@ -32,8 +32,8 @@ from measure_batches import collate, keyframe_baseline, load_windows
 from model import InbetweenTransformer, ModelConfig
 
 from dancedata.errors import DancedataError, InputError
-from dancedata.experiments.evaluate_inputs import closest_rotmat
-from dancedata.experiments.keyframes import even_indices
+from dancedata.methods.keyframes import even_indices
+from dancedata.metrics.evaluate_inputs import closest_rotmat
 
 
 def project_rows(rows: np.ndarray) -> np.ndarray:

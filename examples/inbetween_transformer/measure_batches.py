@@ -1,14 +1,14 @@
-"""Measure windows from ``dancedata.torch_data.MeasureDataset``, with their keyframe baseline.
+"""Measure windows from ``dancedata.read.torch_data.MeasureDataset``, with their keyframe baseline.
 
 Every window is one complete measure of one sequence (60 fps, 225-d FACT rows). For each
 window this module computes ``X_lin`` (spec §3.3): the evenly spaced keyframes ``floor(k(L−1)/
 (N−1) + 0.5)`` (§2.2, first and last frame included) interpolated by linear translation +
-quaternion SLERP (§3.1, ``dancedata.experiments.inbetween.linear_slerp``), in the 225-d layout.
+quaternion SLERP (§3.1, ``dancedata.methods.inbetween.linear_slerp``), in the 225-d layout.
 
 Measures differ in length (14400/BPM frames). Batching is done here, in :func:`collate`: each
 batch is padded to its longest window with zeros and a key-padding mask; a window longer than
 the model's ``max_len`` is cropped to its first ``max_len`` frames for training (counted by
-``train.py``). The library's ``dancedata.torch_batching.pad_collate`` pads motion and audio the
+``train.py``). The library's ``dancedata.read.torch_batching.pad_collate`` pads motion and audio the
 same way; this collate exists because each item also carries its precomputed X_lin and target.
 """
 
@@ -20,9 +20,9 @@ import numpy as np
 import torch
 
 from dancedata.compute.rotations import rotmat_to_quat
-from dancedata.experiments.inbetween import linear_slerp, segment_map
-from dancedata.experiments.keyframes import even_indices
-from dancedata.torch_data import MeasureDataset
+from dancedata.methods.inbetween import linear_slerp, segment_map
+from dancedata.methods.keyframes import even_indices
+from dancedata.read.torch_data import MeasureDataset
 
 # Audio per variant: the thesis's 22-d M_full of the full mix, or of the drums stem (the first
 # 22 columns of thesis_stems_88, stems in contract order drums, bass, vocals, other).

@@ -15,7 +15,7 @@ Backends (:data:`STEM_BACKENDS`):
     local folder or the torch hub cache. Needs the optional extra ``dancedata[stems]``; see
     :mod:`dancedata.compute.stems.openunmix`. The separator is loaded (weights found, read and
     built into the network) by :mod:`dancedata.io.openunmix_model` and passed to
-    :func:`separate` as ``separator=``; :mod:`dancedata.pipeline.stem_separation` does both.
+    :func:`separate` as ``separator=``; :mod:`dancedata.featurize.stem_separation` does both.
 
 The backends are modules of this package; what they share (:data:`STEM_NAMES`, :func:`check_audio`,
 :func:`to_mono`) is in :mod:`dancedata.compute.stems.base` below them, so no backend imports this

@@ -76,9 +76,9 @@ def sha256(path: Path) -> str:
 def features(path: Path, bpm: float | None) -> dict[str, np.ndarray]:
     """Every array of the default families on the track at ``path``, untrimmed, no cache."""
     from dancedata.compute.audio_features import AudioFeatureConfig
-    from dancedata.pipeline.audio_families import default_families
-    from dancedata.pipeline.audio_track import compute_track_features
-    from dancedata.pipeline.family_settings import AudioSettings
+    from dancedata.featurize.audio_track import compute_track_features
+    from dancedata.featurize.families.audio import default_families
+    from dancedata.featurize.family_settings import AudioSettings
 
     settings = AudioSettings()
     arrays, _ = compute_track_features(

@@ -1,0 +1,1 @@
+"""Stored sequences written back out in a file format (BVH)."""

@@ -1,0 +1,1 @@
+"""Reading a store: the reader, its views, windows, batching and torch datasets."""
