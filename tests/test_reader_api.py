@@ -1,6 +1,6 @@
-"""The thin reader's public API (:mod:`dancedata.read.sequence_reader`), and the rule that code outside
-the reader (views, viz, pipeline, CLI, benches, examples) uses only that API, never the private
-members of the reader classes (issue 15, item 5)."""
+"""The thin reader's public API (:mod:`dancedata.read.sequence_reader`), and the rule that code
+outside the reader (views, viz, featurize, study, CLI, benches, examples) uses only that API,
+never the private members of the reader classes (issue 15, item 5)."""
 
 from __future__ import annotations
 

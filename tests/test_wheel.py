@@ -137,7 +137,8 @@ def test_clean_venv_with_the_wheel_runs_the_chain(wheel, tmp_path):
     where = run(
         str(py),
         "-c",
-        "import dancedata, dancedata.read.views, dancedata.compute.stems; print(dancedata.__file__)",
+        "import dancedata, dancedata.read.views, dancedata.compute.stems;"
+        " print(dancedata.__file__)",
     )
     assert Path(where.strip()).is_relative_to(venv), where
     cli = str(venv / "bin" / "dancedata")

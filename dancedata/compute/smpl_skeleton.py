@@ -33,7 +33,8 @@ __all__ = [
 
 EDGE_SMPL_SKELETON_NAME = "edge_smpl_offsets"
 
-# SMPL-24's kinematic tree (parent of each joint, -1 for the pelvis); equal to dancedata.compute.smpl's.
+# SMPL-24's kinematic tree (parent of each joint, -1 for the pelvis); equal to
+# dancedata.compute.smpl's.
 SMPL24_PARENTS: tuple[int, ...] = (
     -1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21,
 )  # fmt: skip

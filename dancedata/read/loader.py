@@ -10,8 +10,9 @@
 :class:`DanceStore` is :class:`dancedata.read.sequence_reader.SequenceReader` (tables, per-sequence
 arrays, aligned audio, splits, measures table; nothing derived) with one-line methods for what
 is built on it, each in its own module: the paper views (:mod:`dancedata.read.views.assemble`,
-layouts in :mod:`dancedata.read.views.fact` and :mod:`dancedata.read.views.thesis`), the measure windows
-(:mod:`dancedata.read.views.measures`) and the AIST++ cameras (:mod:`dancedata.read.views.cameras`).
+layouts in :mod:`dancedata.read.views.fact` and :mod:`dancedata.read.views.thesis`), the measure
+windows (:mod:`dancedata.read.views.measures`) and the AIST++ cameras
+(:mod:`dancedata.read.views.cameras`).
 
 Arrays are read whole into memory on first use and kept (a store's arrays are immutable), so
 random access afterwards costs a numpy slice. For stores larger than memory, read slices through

@@ -3,9 +3,9 @@
 :class:`SequenceReader` gives the tables, each sequence's slice of the stored arrays, its audio
 aligned frame by frame, the split memberships, genres and the measures table. It computes
 nothing: the paper views (:mod:`dancedata.read.views`), the measure windows
-(:mod:`dancedata.read.views.measures`) and the AIST++ cameras (:mod:`dancedata.read.views.cameras`) are
-built on top of it, and :class:`dancedata.read.loader.DanceStore`, what users open, is this reader
-with those as methods.
+(:mod:`dancedata.read.views.measures`) and the AIST++ cameras
+(:mod:`dancedata.read.views.cameras`) are built on top of it, and
+:class:`dancedata.read.loader.DanceStore`, what users open, is this reader with those as methods.
 
 Arrays are read whole into memory on first use and kept (a store's arrays are immutable), so
 random access afterwards costs a numpy slice. For stores larger than memory, read slices through
@@ -95,7 +95,8 @@ class SequenceReader:
     @cached_property
     def _seq_rows(self) -> dict[str, dict[str, Any]]:
         """The sequences table by ``seq_id``; StoreError naming the table for an id outside the
-        character set of :mod:`dancedata.store.seq_ids` (ids name files: never a path or a pattern)."""
+        character set of :mod:`dancedata.store.seq_ids` (ids name files: never a path or a
+        pattern)."""
         rows: dict[str, dict[str, Any]] = {}
         for row in self.sequences.to_pylist():
             problem = seq_id_problem(row.get("seq_id"))

@@ -10,8 +10,8 @@ Assumptions, recorded in the record: generated motion runs at the store's frame 
 beside ground-truth frame i, in SMPL's frame (metres, y up). On SMPL-24 stores ground-truth
 positions come from forward kinematics of the stored rotations about the run's rest skeleton:
 ``smpl_model`` when given, else the built-in ``edge_smpl_offsets``
-(:mod:`dancedata.compute.smpl_skeletons`); generated rotations are posed the same way (a file holding
-positions only is used as it is). The skeleton is recorded in ``config.skeleton`` and in the
+(:mod:`dancedata.compute.smpl_skeletons`); generated rotations are posed the same way (a file
+holding positions only is used as it is). The skeleton is recorded in ``config.skeleton`` and in the
 convention of every metric computed from positions. Other stores: ``smpl_model`` if given,
 else the store's ``motion/positions``. Music beats are the store's ``audio/beats`` (librosa
 ``beat_track``; ``beat_source = "bailando"``: ``audio/beats_bailando``), inside the compared

@@ -17,8 +17,8 @@ its ``score_reconstructions``):
   paired_gt``), one feature vector per sequence or per measure (``fid_unit``). Positions are
   forward kinematics about an SMPL model file's rest joints (``metrics.smpl_model``, default
   ``$DANCEDATA_SMPL_MODEL``) or, without one, the built-in ``edge_smpl_offsets`` skeleton
-  (:mod:`dancedata.compute.smpl_skeletons`); the skeleton is in every FID row's ``variant`` and in the
-  record's ``conventions.skeleton``, and enters the run id.
+  (:mod:`dancedata.compute.smpl_skeletons`); the skeleton is in every FID row's ``variant`` and in
+  the record's ``conventions.skeleton``, and enters the run id.
 
 Rows whose inputs are missing (no audio / stems / NMFD for a peak strategy, fewer than 2 FID
 units, no generated outputs for a ``transformer_*`` row) are skipped with a one-line reason in the

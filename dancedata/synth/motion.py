@@ -7,8 +7,9 @@ snare on every beat, a pickup kick on the "and" of beat 4 in odd measures), with
 arrival, a pelvis dip and a head/shoulder accent at each onset. Feet are planted (zero speed, on
 the floor) except while they step, and the root follows the feet: the pelvis sits between them
 and shifts onto the standing foot. The legs are solved by two-bone inverse kinematics on
-:data:`dancedata.compute.smpl.SMPL_REST_OFFSETS_M` so the planted ankles stay put; ankles, feet, wrists
-and hands barely rotate, as in AIST++'s fits. Angles radians, lengths metres, y up, floor y = 0.
+:data:`dancedata.compute.smpl.SMPL_REST_OFFSETS_M` so the planted ankles stay put; ankles, feet,
+wrists and hands barely rotate, as in AIST++'s fits. Angles radians, lengths metres, y up,
+floor y = 0.
 How the ranges were calibrated on real AIST++ motion: docs/STORE.md, "The synthetic twin's
 motion".
 """

@@ -4,7 +4,8 @@ Sources, and the order ``source="auto"`` tries them in:
 
 1. ``smpl``: SMPL joints (24, metres, y-up) posed from ``motion/axis_angle`` and ``motion/trans``
    about an SMPL model file's rest joints (``smpl_model``; :mod:`dancedata.io.smpl_model`) or,
-   without one, the built-in ``edge_smpl_offsets`` skeleton (:mod:`dancedata.compute.smpl_skeletons`).
+   without one, the built-in ``edge_smpl_offsets`` skeleton
+   (:mod:`dancedata.compute.smpl_skeletons`).
    Chosen first when a model is given and the store's skeleton is SMPL-24; without a model,
    after ``keypoints3d`` and ``positions`` (before ``fk`` and ``pose2d``).
 2. ``keypoints3d``: AIST++ COCO-17 keypoints (metres, y-up; NaN where not triangulated).
