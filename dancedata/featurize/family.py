@@ -18,7 +18,7 @@ How a family computes differs by group (a batch of whole sequences, or one music
 :class:`~dancedata.featurize.families.motion_base.MotionFamily` and
 :class:`~dancedata.featurize.families.audio_base.AudioFamily`.
 
-Family modules are ``dancedata/pipeline/motion_families*.py`` and ``audio_families*.py``; the
+Family modules are ``dancedata/featurize/families/motion*.py`` and ``audio*.py``; the
 registry imports all of them on first use (:func:`registered`), so adding a family is adding its
 module. :func:`run_order` orders the families of one run so that a family reading another's
 output runs after it (a topological order, stable in the order asked).

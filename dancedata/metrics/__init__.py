@@ -1,5 +1,5 @@
-"""Metrics of the experiment layer (docs/METRICS.md), each a pure function named by its
-convention and returning a :class:`MetricResult` (value + convention + sample size).
+"""The metrics (docs/METRICS.md), each a pure function named by its convention and returning
+a :class:`MetricResult` (value + convention + sample size), and the scoring of generated motion.
 
 - :mod:`.mse` — reconstruction MSE with space, wrapping and reduction.
 - :mod:`.frechet` — the Fréchet distance as mint computes it, reference z-scoring.
@@ -9,6 +9,10 @@ convention and returning a :class:`MetricResult` (value + convention + sample si
 - :mod:`.fpd` — FPD and FMD (ChoreoGraph after Transflower).
 - :mod:`.pfc` — EDGE's Physical Foot Contact score.
 - :mod:`.multimodality` — mean distance between generations for the same music.
+- :mod:`.reconstruction_error` — the MSE of EXPERIMENTS.md §4.1 in its default convention.
+- :mod:`.evaluate_inputs` — the conversions that put generated and ground-truth motion into
+  the spaces the metrics read; :mod:`.evaluate_conventions` — the settings of a paper's table
+  row (the scoring itself, over the metric registry: :mod:`dancedata.study.scoring`).
 """
 
 from dancedata.metrics.beats import (

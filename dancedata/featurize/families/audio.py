@@ -19,9 +19,10 @@ Families (:data:`FAMILIES`); the default set is :data:`DEFAULT_FAMILIES`:
 ==============  ==========================================================================
 
 Every family registers itself (``@register_family``, :mod:`dancedata.featurize.family`); the
-registry loads every ``audio_families*`` module, and :data:`FAMILIES` (the registered audio
-families) stays importable from here. To add a family, subclass :class:`AudioFamily` in a new
-``audio_families_<name>.py`` module and decorate it with ``@register_family("<name>")``.
+registry loads every ``audio*`` module of ``featurize/families/``, and :data:`FAMILIES` (the
+registered audio families) stays importable from here. To add a family, subclass
+:class:`AudioFamily` in a new ``audio_<name>.py`` module and decorate it with
+``@register_family("<name>")``.
 """
 
 from __future__ import annotations
@@ -106,7 +107,7 @@ STEM_FAMILIES: tuple[str, ...] = ("stems", "nmfd")
 
 
 def __getattr__(name: str) -> Any:
-    """``FAMILIES``: the registered audio families (every audio_families* module), by name."""
+    """``FAMILIES``: the registered audio families (every audio* module of families/), by name."""
     if name == "FAMILIES":
         return registered("audio")
     raise AttributeError(name)

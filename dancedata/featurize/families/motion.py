@@ -7,10 +7,10 @@ state carried between batches, and batches are independent work units. A family 
 arrays it writes and returns them with one row per frame of the batch.
 
 Every family registers itself (``@register_family``, :mod:`dancedata.featurize.family`); the
-registry loads every ``motion_families*`` module. This module holds the ``rotations`` family and
-the default set, and keeps :data:`FAMILIES` (the registered motion families) importable. To add
-a family, subclass :class:`MotionFamily` in a new ``motion_families_<name>.py`` module and
-decorate it with ``@register_family("<name>")``.
+registry loads every ``motion*`` module of ``featurize/families/``. This module holds the
+``rotations`` family and the default set, and keeps :data:`FAMILIES` (the registered motion
+families) importable. To add a family, subclass :class:`MotionFamily` in a new
+``motion_<name>.py`` module and decorate it with ``@register_family("<name>")``.
 """
 
 from __future__ import annotations
@@ -131,7 +131,7 @@ DEFAULT_FAMILIES: tuple[str, ...] = ("rotations",)
 
 
 def __getattr__(name: str) -> Any:
-    """``FAMILIES``: the registered motion families (every motion_families* module), by name."""
+    """``FAMILIES``: the registered motion families (every motion* module of families/), by name."""
     if name == "FAMILIES":
         return registered("motion")
     raise AttributeError(name)
