@@ -3,7 +3,7 @@
 Per sequence, with no reuse between sequences: load the motion pickle, load the music with
 librosa (decoding and resampling to 30720 Hz), compute the FACT 35-d audio features (onset
 strength, 20 MFCC, 12 chroma_cens, onset peaks, beats with the known BPM), and np.save one file
-per sequence. Written for this bench from the recipe (REFERENCE.md), not copied.
+per sequence. Written for this bench from the recipe (docs/FORMATS.md), not copied.
 
 Usage: python bench/baseline_fact.py RAW OUT SEQ_ID...   → JSON lines, one per sequence, with
 wall and CPU seconds.

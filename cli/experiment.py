@@ -1,4 +1,5 @@
-"""``dancedata experiment run|table``: the experiment matrix and the seed tables (spec §5)."""
+"""``dancedata experiment run|table``: the experiment matrix and the seed tables
+(docs/EXPERIMENTS.md §5)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``dancedata keyframes``: keyframes per measure (EXPERIMENTS.md §2) into a new version."""
+"""``dancedata keyframes``: keyframes per measure (docs/EXPERIMENTS.md §2) into a new version."""
 
 from __future__ import annotations
 

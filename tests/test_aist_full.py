@@ -102,7 +102,8 @@ def test_real_motion_and_keypoints_ingest_exactly(real_store):
         else:
             assert np.isnan(store.motion(seq_id, "keypoints2d")).all()
             assert np.isnan(store.motion(seq_id, "det_scores")).all()
-    # Frame counts as PROVENANCE.md states them: three basic at 576, one advanced at 1919.
+    # Frame counts as docs/FORMATS.md ("Real test files") states them: three basic at 576, one
+    # advanced at 1919.
     frames = sorted(store.sequence(s)["n_frames"] for s in store.seq_ids())
     assert frames == [576, 576, 576, 1919]
     assert validate_store(real_store["store"]) == []

@@ -1,5 +1,6 @@
-"""BVH reader: the five real files as PROVENANCE.md describes them, the edge cases of
-REFERENCE.md, and malformed input rejected with the line number."""
+"""BVH reader: the five real files as docs/FORMATS.md ("Real test files") describes them, the
+edge cases of docs/FORMATS.md ("BVH edge cases"), and malformed input rejected with the line
+number."""
 
 from __future__ import annotations
 

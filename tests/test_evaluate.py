@@ -386,7 +386,7 @@ def _even_slerp(store: dancedata.DanceStore, seq: str, n: int):
 @pytest.mark.slow
 @pytest.mark.real_data
 def test_real_motions_even_slerp_mse_and_fid_path(real_store: Path, model_path: Path) -> None:
-    """EXPERIMENTS.md §7.2 on the real motions: even + linear SLERP, euler75 XYZ pooled MSE
+    """docs/EXPERIMENTS.md §7.2 on the real motions: even + linear SLERP, euler75 XYZ pooled MSE
     0.336 / 0.209 / 0.084 for N = 3 / 5 / 9 (within 1e-3), and FID_k(GT, reconstruction)
     falling from N = 3 to 9 (SMPL joints from the synthetic test model: no SMPL ships)."""
     s = dancedata.open_store(real_store)

@@ -1,5 +1,5 @@
 """examples/inbetween_transformer end to end: train a tiny model on a synthetic store, write its
-outputs as <seq_id>.npy FACT rows, score them with `dancedata evaluate` (EXPERIMENTS.md §3.3).
+outputs as <seq_id>.npy FACT rows, score them with `dancedata evaluate` (docs/EXPERIMENTS.md §3.3).
 
 The example's scripts run as a user runs them (subprocesses). Skipped without torch (the
 optional 'stems' or 'learned' extra); `make test` installs it.

@@ -1,4 +1,4 @@
-"""In-betweening (EXPERIMENTS.md §3, tests of §7.1) and the real-data anchor of §7.2.
+"""In-betweening (docs/EXPERIMENTS.md §3, tests of §7.1) and the real-data anchor of §7.2.
 
 References: scipy ``Rotation``/``Slerp`` for rotations, ``np.interp`` for translation,
 ``np.linalg.lstsq`` and ``scipy.optimize.least_squares(method="lm")`` for the Bézier fit, and

@@ -1,4 +1,4 @@
-"""Keyframe selection (EXPERIMENTS.md §2, tests of §7.1) and the `dancedata keyframes` command.
+"""Keyframe selection (docs/EXPERIMENTS.md §2, tests of §7.1) and the `dancedata keyframes` command.
 
 References: closed-form index lists from the spec, ``scipy.signal.find_peaks``, a brute force
 over every keyframe subset, and a per-measure loop against the batched functions.
@@ -183,7 +183,7 @@ def test_peak_curves_must_be_finite() -> None:
 
 
 def direct_error(x: np.ndarray, a: int, b: int, distance: str) -> float:
-    """e(a, b) straight from the definition (spec §2.4)."""
+    """e(a, b) straight from the definition (docs/EXPERIMENTS.md §2.4)."""
     if b - a < 2:
         return 0.0
     if distance == "perpendicular":
@@ -490,7 +490,7 @@ def test_a_keyframe_run_feeds_the_in_betweeners(small_store: Path) -> None:
 
 @pytest.mark.real_data
 def test_dp_on_a_real_measure_matches_the_spec_sanity_check(real_data: Path) -> None:
-    """EXPERIMENTS.md §8: gJS_sFM_cAll_d02_mJS4_ch09, measure 3 (L = 120 at 120 BPM), euler75
+    """docs/EXPERIMENTS.md §8: gJS_sFM_cAll_d02_mJS4_ch09, measure 3 (L = 120 at 120 BPM), euler75
     rows (XYZ, float32 as stored): the keyframes the spec's independent script found."""
     from dancedata.compute.measures import measure_bounds
     from dancedata.compute.motion_representations import representations_from_axis_angle

@@ -1,4 +1,4 @@
-"""Unit tests of the metrics (EXPERIMENTS.md §7.1): closed forms, hand examples, identities."""
+"""Unit tests of the metrics (docs/EXPERIMENTS.md §7.1): closed forms, hand examples, identities."""
 
 from __future__ import annotations
 

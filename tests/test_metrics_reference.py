@@ -1,6 +1,7 @@
-"""Our metrics against independent transcriptions of the public code they follow (EXPERIMENTS.md
-§4.10), on the same inputs, within 1e-6 (Fréchet distances: plus the sqrtm error bound their
-result records, which is at float64 rounding unless there are fewer units than dimensions).
+"""Our metrics against independent transcriptions of the public code they follow
+(docs/EXPERIMENTS.md §4.10), on the same inputs, within 1e-6 (Fréchet distances: plus the sqrtm
+error bound their result records, which is at float64 rounding unless there are fewer units than
+dimensions).
 
 Each ``ref_*`` function below transcribes one public function (file and function named in its
 docstring) into a plain loop, kept as close to the original as possible; it shares no code with

@@ -147,7 +147,7 @@ def test_keyframes_panel_draws_each_strategy_at_its_frames(store, tmp_path):
     # Without a keyframes table there is no keyframe panel, quietly.
     fig = sequence_figure(store, next(iter(_raw(store)[1])))
     assert not any(str(ln.get_gid()).startswith("keyframes") for ax in fig.axes for ln in ax.lines)
-    # A copy of the store whose latest version has a keyframes table (EXPERIMENTS.md §2.5).
+    # A copy of the store whose latest version has a keyframes table (docs/EXPERIMENTS.md §2.5).
     copy = tmp_path / "store"
     shutil.copytree(store, copy)
     vdir, seqs, _, _ = _raw(copy)

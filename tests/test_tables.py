@@ -1,4 +1,4 @@
-"""Rendering the seed tables (EXPERIMENTS.md §5.5–5.6) from result rows.
+"""Rendering the seed tables (docs/EXPERIMENTS.md §5.5–5.6) from result rows.
 
 The reference is ``../shared/seed-tables.json`` itself (read directly here, not through the
 package copy): captions verbatim, row and column order, number formats and seed values.

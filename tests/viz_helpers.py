@@ -19,7 +19,7 @@ def build_small_store(root: Path, sequences: int = 2, seed: int = 0) -> Path:
 
 
 def write_keyframes_table(version_dir: Path) -> list[dict]:
-    """Write a ``keyframes.parquet`` (EXPERIMENTS.md §2.5 columns) into a COPY of a version:
+    """Write a ``keyframes.parquet`` (docs/EXPERIMENTS.md §2.5 columns) into a COPY of a version:
     strategies ``even`` N=3 and ``peaks:onset`` N=5 over every measure. Returns the rows."""
     import numpy as np
     import pyarrow as pa

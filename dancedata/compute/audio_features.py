@@ -1,6 +1,6 @@
 """The FACT / AIST++ audio features, as pure functions of a mono signal.
 
-Recipe (REFERENCE.md, "FACT/mint, 35-d"): sr = fps × hop = 60 × 512 = 30720 Hz, hop 512,
+Recipe (docs/FORMATS.md, "FACT/mint, 35-d"): sr = fps × hop = 60 × 512 = 30720 Hz, hop 512,
 n_fft 2048, Hann window, so feature frame i sits at i / 60 s and meets motion frame i.
 
 - ``onset_env``   spectral-flux onset strength, librosa.onset.onset_strength

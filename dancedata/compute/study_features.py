@@ -1,4 +1,5 @@
-"""Audio feature sets of the other studies the toolkit serves (REFERENCE.md, three sources).
+"""Audio feature sets of the other studies the toolkit serves (docs/FORMATS.md, "The three
+studies").
 
 Pure functions of a mono waveform, each named after the study whose recipe it follows:
 

@@ -1,6 +1,6 @@
 """BVH motion capture: data model, reader and writer.
 
-The reader is built for files found in the wild (see REFERENCE.md, "BVH edge cases"):
+The reader is built for files found in the wild (see docs/FORMATS.md, "BVH edge cases"):
 
 * the HIERARCHY is read by a small tokenizer with line numbers, iteratively (no recursion limit);
   every joint keeps its own channel list and order, a joint may carry 0-6 channels, any number of

@@ -1,6 +1,6 @@
 """The methods the experiments compare: keyframe selection and in-betweening.
 
-Specification: ``EXPERIMENTS.md`` (the shared research-layer spec). Everything here is a pure
+Specification: ``docs/EXPERIMENTS.md`` (the shared research-layer spec). Everything here is a pure
 array function, vectorised over measures; the scores are :mod:`dancedata.metrics`, and reading a
 store and writing results live in :mod:`dancedata.study` and the CLI.
 

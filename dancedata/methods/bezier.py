@@ -1,4 +1,4 @@
-"""Cubic Bézier in-betweening per channel (EXPERIMENTS.md §3.2), vectorised over segments.
+"""Cubic Bézier in-betweening per channel (docs/EXPERIMENTS.md §3.2), vectorised over segments.
 
 Each channel c of the 75-d Euler layout (3 translation in m + 72 Euler angles in rad) is a
 scalar curve; on a segment (a, b) with ``u = (t − a)/(b − a)``,
@@ -176,7 +176,7 @@ def linear_channels(x: np.ndarray, segments: SegmentMap) -> np.ndarray:
 
 @dataclass
 class BezierTrainMean:
-    """Control points averaged over the train split (spec §3.2, ``train_mean``).
+    """Control points averaged over the train split (docs/EXPERIMENTS.md §3.2, ``train_mean``).
 
     ``group``: ``channel_slot`` (one mean per channel and segment slot k = 0 … N−2; needs the
     same N at fit and predict) or ``channel``. ``param``: ``absolute`` (mean of P1, P2 in m/rad)

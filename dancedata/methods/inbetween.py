@@ -1,4 +1,4 @@
-"""In-betweening between keyframes (EXPERIMENTS.md §3), vectorised over measures.
+"""In-betweening between keyframes (docs/EXPERIMENTS.md §3), vectorised over measures.
 
 Every non-learned in-betweener works on segments: consecutive keyframes (a, b) of a measure,
 frames t = a … b, parameter ``u = (t − a)/(b − a)``. A :class:`SegmentMap` lists every frame of
@@ -207,7 +207,7 @@ def linear_slerp(
     euler_order: EulerOrder = "XYZ",
     truth_euler: np.ndarray | None = None,
 ) -> Reconstruction:
-    """Linear translation + quaternion SLERP between keyframes (spec §3.1, Eq. 2.5–2.6).
+    """Linear translation + quaternion SLERP between keyframes (§3.1, Eq. 2.5–2.6).
 
     Args:
         quat: (F, J, 4) wxyz rotations of the motion the map indexes (any sign convention:

@@ -1,4 +1,4 @@
-"""Keyframe selection per measure (EXPERIMENTS.md §2): pure functions, batched over measures.
+"""Keyframe selection per measure (docs/EXPERIMENTS.md §2): pure functions, batched over measures.
 
 Strategies (spec ids): ``even``; ``peaks:onset``, ``peaks:stems``, ``peaks:nmfd`` (peak-picked
 from a 1-d curve: the full-mix onset envelope, the weighted stem onsets, the weighted NMFD
@@ -55,7 +55,7 @@ def canonical_strategy(name: str) -> str:
 
 @dataclass(frozen=True)
 class KeyframeParams:
-    """The [CHOICE] parameters of EXPERIMENTS.md §2 with their defaults (spec §9, rows 1–10).
+    """The [CHOICE] parameters of docs/EXPERIMENTS.md §2 with their defaults (§9, rows 1–10).
 
     ``guard`` is the edge guard G in frames (60 fps: 6 frames = 0.1 s). ``stem_weights`` and
     ``nmfd_weights`` weight the curves of ``peaks:stems`` / ``peaks:nmfd``; ``normalize`` divides
@@ -152,7 +152,7 @@ def _check_lengths(length: int, n: int) -> None:
 
 
 def even_indices(length: int, n: int) -> np.ndarray:
-    """(N,) int64 ``floor(k·(L−1)/(N−1) + 0.5)``, k = 0 … N−1 (spec §2.2)."""
+    """(N,) int64 ``floor(k·(L−1)/(N−1) + 0.5)``, k = 0 … N−1 (docs/EXPERIMENTS.md §2.2)."""
     _check_lengths(length, n)
     k = np.arange(n, dtype=np.float64)
     return np.floor(k * (length - 1) / (n - 1) + 0.5).astype(np.int64)

@@ -1,4 +1,4 @@
-"""Peak-picked keyframes from a 1-d curve per measure (EXPERIMENTS.md §2.3), vectorised.
+"""Peak-picked keyframes from a 1-d curve per measure (docs/EXPERIMENTS.md §2.3), vectorised.
 
 Every function takes a batch of measures of one length L as an (M, L) array of curve values
 (onset strength, weighted stem onsets, weighted NMFD activation: any finite float) and treats the

@@ -9,7 +9,7 @@ a :class:`MetricResult` (value + convention + sample size), and the scoring of g
 - :mod:`.fpd` — FPD and FMD (ChoreoGraph after Transflower).
 - :mod:`.pfc` — EDGE's Physical Foot Contact score.
 - :mod:`.multimodality` — mean distance between generations for the same music.
-- :mod:`.reconstruction_error` — the MSE of EXPERIMENTS.md §4.1 in its default convention.
+- :mod:`.reconstruction_error` — the MSE of docs/EXPERIMENTS.md §4.1 in its default convention.
 - :mod:`.evaluate_inputs` — the conversions that put generated and ground-truth motion into
   the spaces the metrics read; :mod:`.evaluate_conventions` — the settings of a paper's table
   row (the scoring itself, over the metric registry: :mod:`dancedata.study.scoring`).

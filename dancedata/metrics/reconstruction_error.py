@@ -1,4 +1,4 @@
-"""Reconstruction MSE of EXPERIMENTS.md §4.1 in its default convention, one named function.
+"""Reconstruction MSE of docs/EXPERIMENTS.md §4.1 in its default convention, one named function.
 
     MSE = 1/(N·J) · Σ_n Σ_j ‖x_n^j − x̂_n^j‖²          (000 Eq. 2.8)
 

@@ -1,6 +1,6 @@
 """The value every metric returns: a number together with the convention that produced it.
 
-EXPERIMENTS.md §0.4 and §4.10: public implementations of "the same" metric differ in ways that
+docs/EXPERIMENTS.md §0.4 and §4.10: public implementations of "the same" metric differ in ways that
 change the number (direction, σ, normalisation, frame ranges). So no metric here returns a bare
 float: each returns a :class:`MetricResult` naming the metric, its convention (every parameter
 that affects the number) and the sample size behind it.
@@ -24,7 +24,7 @@ class MetricResult:
 
     Attributes:
         name: the metric's name in results records (``mse``, ``fid_k``, ``bas_mint``, ...;
-            EXPERIMENTS.md §5.5).
+            docs/EXPERIMENTS.md §5.5).
         value: the number (float64; NaN when undefined, e.g. no beats).
         convention: every parameter that affects ``value`` (JSON-serialisable), including the
             public implementation it follows (``"convention": "mint"``...).

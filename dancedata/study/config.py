@@ -1,8 +1,8 @@
-"""Experiment configs (EXPERIMENTS.md §6): a TOML file → a validated, fully defaulted config.
+"""Experiment configs (docs/EXPERIMENTS.md §6): a TOML file → a validated, fully defaulted config.
 
-A config names a matrix of rows (keyframe strategy + in-betweener, the row keys of spec §5.1,
-e.g. ``even+linear_slerp``) × keyframe counts N × metrics, the split to evaluate on, and every
-[CHOICE] parameter of spec §2–4. Every key, defaults filled in, enters the run fingerprint
+A config names a matrix of rows (keyframe strategy + in-betweener, the row keys of §5.1, e.g.
+``even+linear_slerp``) × keyframe counts N × metrics, the split to evaluate on, and every
+[CHOICE] parameter of §2–4. Every key, defaults filled in, enters the run fingerprint
 (:func:`run_fingerprint`), so two results with the same ``run_id`` come from the same settings.
 
 File layout (every table and key optional except ``rows`` or ``[matrix]``)::
@@ -41,7 +41,7 @@ from dancedata.errors import InputError
 from dancedata.methods.keyframes import KeyframeParams, canonical_strategy
 from dancedata.study.metric_registry import experiment_metric_names
 
-# In-betweeners of spec §3 by row-key name; transformer:* rows need a trained model (class M).
+# In-betweeners of §3 by row-key name; transformer:* rows need a trained model (class M).
 INBETWEENERS: tuple[str, ...] = ("linear_slerp", "bezier_oracle", "bezier_train_mean")
 TRANSFORMER_PREFIX = "transformer_"
 GENRES_9: tuple[str, ...] = ("gBR", "gHO", "gJS", "gKR", "gLH", "gLO", "gMH", "gPO", "gWA")
@@ -304,7 +304,7 @@ class ExperimentConfig:
 
     @property
     def split_label(self) -> str:
-        """``crossmodal:test+val`` (spec §5.5 ``split`` column)."""
+        """``crossmodal:test+val`` (docs/EXPERIMENTS.md §5.5 ``split`` column)."""
         return f"{self.split['scheme']}:{'+'.join(self.split['eval'])}"
 
     def keyframe_params(self) -> KeyframeParams:

@@ -3,8 +3,8 @@
 Reads the store version (never writes to it), one generated file per sequence of the split (or
 the same sequences of another dancedata store), puts both sides into the metrics' spaces, runs
 :func:`dancedata.study.scoring.evaluate_sequences` and writes a results record:
-``results.json`` (everything) and ``results.parquet`` (EXPERIMENTS.md §5.5 long format, one row
-per metric), each written under a temporary name and renamed into ``out``.
+``results.json`` (everything) and ``results.parquet`` (docs/EXPERIMENTS.md §5.5 long format, one
+row per metric), each written under a temporary name and renamed into ``out``.
 
 Assumptions, recorded in the record: generated motion runs at the store's frame rate, frame i
 beside ground-truth frame i, in SMPL's frame (metres, y up). On SMPL-24 stores ground-truth

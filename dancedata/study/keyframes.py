@@ -3,7 +3,7 @@
 Reads the measures table, the 75-d Euler rows (``motion/trans`` + ``motion/euler``) and the
 audio curves of a version, runs the requested strategies at every requested N with the pure
 functions of :mod:`dancedata.methods.keyframes`, and writes ``keyframes.parquet`` (one row
-per keyframe, EXPERIMENTS.md §2.5) into a new version. Measures are grouped by length and each
+per keyframe, docs/EXPERIMENTS.md §2.5) into a new version. Measures are grouped by length and each
 group is selected in one batch; the only per-sequence loop assembles the audio curves.
 
 The strategies, N values and every [CHOICE] parameter are the command's config: recorded in the
@@ -335,7 +335,7 @@ def _run_id(strategy: str, n: int, params: KeyframeParams, data: dict[str, Any])
 
 
 def _table(selections: list[tuple[str, int, str, list[Selection]]], measures: MeasureSet) -> Any:
-    """The keyframes table (EXPERIMENTS.md §2.5) from every selection, column by column."""
+    """The keyframes table (docs/EXPERIMENTS.md §2.5) from every selection, column by column."""
     import pyarrow as pa
 
     columns: dict[str, list[np.ndarray]] = defaultdict(list)

@@ -1,4 +1,4 @@
-"""The long-format results table (spec §5.5): its columns and types, written once.
+"""The long-format results table (docs/EXPERIMENTS.md §5.5): its columns and types, written once.
 
 ``dancedata experiment run`` (:mod:`dancedata.study.runner`) and ``dancedata evaluate``
 (:mod:`dancedata.study.evaluate`) both write ``results.parquet``, one row per (row key,

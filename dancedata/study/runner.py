@@ -1,4 +1,5 @@
-"""``dancedata experiment run``: a matrix of rows × N × metrics over a split (EXPERIMENTS.md §5).
+"""``dancedata experiment run``: a matrix of rows × N × metrics over a split
+(docs/EXPERIMENTS.md §5).
 
 For every row key (keyframe strategy + in-betweener) and every N of the config, the runner
 selects keyframes in every complete measure of the eval split, reconstructs the in-betweens
@@ -25,7 +26,7 @@ units, no generated outputs for a ``transformer_*`` row) are skipped with a one-
 record; they are never replaced by something else. Class M rows take their in-betweens from
 ``generated`` folders (:mod:`dancedata.study.runner_generated`).
 
-Output (spec §5.5): ``results.parquet`` (long format, one row per (row, N, metric)) and
+Output (§5.5): ``results.parquet`` (long format, one row per (row, N, metric)) and
 ``results.json`` (the record: run id, store version, split, every convention, the skips).
 """
 
@@ -255,7 +256,7 @@ def _smpl_model(config: ExperimentConfig, override: str | Path | None) -> tuple[
 
 def run_fingerprint(config: ExperimentConfig, store_fingerprint: str,
                     extra_inputs: list[str]) -> str:  # fmt: skip
-    """run_id (spec §5.5): every config key (defaults filled, the store path left out: the
+    """run_id (§5.5): every config key (defaults filled, the store path left out: the
     version's fingerprint stands for the data) + the store version + model outputs' hashes."""
     data = {k: v for k, v in config.data.items() if k != "store"}
     return fingerprint("experiment", data, [store_fingerprint, *extra_inputs], __version__)[:16]

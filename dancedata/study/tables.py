@@ -1,4 +1,4 @@
-"""Render the seed's results tables from result rows (EXPERIMENTS.md §5.5–5.6).
+"""Render the seed's results tables from result rows (docs/EXPERIMENTS.md §5.5–5.6).
 
 The layout of every table comes from ``seed-tables.json`` (a copy ships as
 ``dancedata/study/seed_tables.json``): caption verbatim, row and column order, number
@@ -193,7 +193,7 @@ def _cell_text(cell: Cell, fmt: str, notes: list[str], compare_seed: bool,
 
 
 def _relative(cell: Cell) -> str:
-    """The relative difference block of ``compare_seed`` (spec §5.5), in percent."""
+    """The relative difference block of ``compare_seed`` (docs/EXPERIMENTS.md §5.5), in percent."""
     if cell.value is None or cell.seed is None or cell.seed == 0:
         return DASH
     change = 100.0 * (cell.value - cell.seed) / abs(cell.seed)

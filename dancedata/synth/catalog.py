@@ -18,7 +18,7 @@ from dancedata.io.aist_names import GENRES, HELD_OUT_MUSIC_IDS, music_bpm
 FPS = 60.0
 GENRE_ORDER: tuple[str, ...] = tuple(GENRES)  # gBR, gPO, gLO, gMH, gLH, gHO, gWA, gKR, gJS, gJB
 N_FULL = 1408
-# The real AIST++ split sizes (REFERENCE.md, "Splits").
+# The real AIST++ split sizes (docs/FORMATS.md, "Splits").
 CROSSMODAL_SIZES: dict[str, int] = {"train": 980, "val": 20, "test": 20}
 POSE_SIZES: dict[str, int] = {"train": 868, "val": 70, "test": 470}
 IGNORE_SIZE, IGNORE_IN_CROSSMODAL_TRAIN = 45, 28

@@ -127,7 +127,7 @@ def _decode_waveform(
 
 
 def read_keyframes(reader: VersionReader | SequenceReader) -> list[dict[str, Any]] | None:
-    """Rows of the version's ``keyframes`` table (EXPERIMENTS.md §2.5), or None without one."""
+    """Rows of the version's ``keyframes`` table (docs/EXPERIMENTS.md §2.5), or None without one."""
     if not reader.has_table("keyframes"):
         return None
     return reader.table("keyframes").to_pylist()

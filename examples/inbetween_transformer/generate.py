@@ -5,7 +5,8 @@
 
 One file per sequence of the split(s): (F, 225) float32 rows in the ``fact_motion_225`` layout
 (6 zeros + root translation m + 24 row-major 3×3 rotations, each projected to the nearest
-rotation by SVD with a determinant fix, spec §3.3), frame i = the sequence's frame i at 60 fps,
+rotation by SVD with a determinant fix,
+docs/EXPERIMENTS.md §3.3), frame i = the sequence's frame i at 60 fps,
 F = the end of its last complete measure. Frames inside measures are the model's
 ``X_lin + f(·)``. Frames outside every measure (before the first one when the segmentation has a
 downbeat phase, or in a gap) have no model input: they are the keyframe baseline (SLERP between

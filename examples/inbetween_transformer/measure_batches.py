@@ -1,9 +1,10 @@
 """Measure windows from ``dancedata.read.torch_data.MeasureDataset``, with their keyframe baseline.
 
-Every window is one complete measure of one sequence (60 fps, 225-d FACT rows). For each
-window this module computes ``X_lin`` (spec §3.3): the evenly spaced keyframes ``floor(k(L−1)/
-(N−1) + 0.5)`` (§2.2, first and last frame included) interpolated by linear translation +
-quaternion SLERP (§3.1, ``dancedata.methods.inbetween.linear_slerp``), in the 225-d layout.
+Every window is one complete measure of one sequence (60 fps, 225-d FACT rows). For each window this
+module computes ``X_lin`` (docs/EXPERIMENTS.md §3.3): the evenly spaced keyframes
+``floor(k(L−1)/(N−1) + 0.5)`` (§2.2, first and last frame included) interpolated by linear
+translation + quaternion SLERP (§3.1, ``dancedata.methods.inbetween.linear_slerp``), in the 225-d
+layout.
 
 Measures differ in length (14400/BPM frames). Batching is done here, in :func:`collate`: each
 batch is padded to its longest window with zeros and a key-padding mask; a window longer than

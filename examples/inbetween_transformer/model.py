@@ -1,4 +1,5 @@
-"""The in-between transformer of EXPERIMENTS.md §3.3 (thesis 000 §3.5.3, App. A), size configurable.
+"""The in-between transformer of docs/EXPERIMENTS.md §3.3 (thesis 000 §3.5.3, App. A), size
+configurable.
 
 Input per frame: ``X_lin``, the measure's evenly spaced keyframes interpolated by linear
 translation + quaternion SLERP (§3.1) in the 225-d FACT layout (6 zeros + trans + 24 row-major
@@ -13,7 +14,7 @@ residual ``D_rotmat − X_lin``; the reconstruction is ``X_lin + f(·)``.
   (self-attention, cross-attention to the audio, MLP).
 
 Thesis size: d_model 800, 4 layers, 10 heads, MLP 3072, dropout 0.1, GELU (the thesis says
-"softmax", which is the attention's normalisation; GELU follows FACT/mint, spec §3.3). The audio
+"softmax", which is the attention's normalisation; GELU follows FACT/mint, §3.3). The audio
 encoder's depth is not stated; it uses the same number of layers. Pre-norm layers (as mint's
 ``base_models.Transformer``). Learned absolute positional embeddings of ``max_len`` frames. The
 final projection starts at zero, so an untrained model returns X_lin exactly (the baseline) and

@@ -1,4 +1,4 @@
-"""Train the in-between transformer (EXPERIMENTS.md §3.3) on a store's train split; checkpoint.
+"""Train the in-between transformer (docs/EXPERIMENTS.md §3.3) on a store's train split; checkpoint.
 
     .venv/bin/python examples/inbetween_transformer/train.py data/stores/aist-demo \
         --keyframes 9 --out runs/motion9.pt
@@ -185,7 +185,7 @@ def train(args: argparse.Namespace) -> dict:
         "audio_stats": stats,
         "n_keyframes": args.keyframes,
         "keyframes": "even floor(k*(L-1)/(N-1) + 0.5)",
-        "baseline": "linear translation + quaternion SLERP (EXPERIMENTS.md §3.1), 225-d rows",
+        "baseline": "linear translation + quaternion SLERP (docs/EXPERIMENTS.md §3.1), 225-d rows",
         "store": str(args.store),
         "store_version": store.version,
         "train_split": args.train_split,
