@@ -1,5 +1,5 @@
 """The metrics (docs/METRICS.md), each a pure function named by its convention and returning
-a :class:`MetricResult` (value + convention + sample size), and the scoring of generated motion.
+a :class:`MetricResult` (value + convention + sample size).
 
 - :mod:`.mse` — reconstruction MSE with space, wrapping and reduction.
 - :mod:`.frechet` — the Fréchet distance as mint computes it, reference z-scoring.

@@ -1,7 +1,7 @@
 """The metric registry: every metric ``evaluate`` (and ``experiment run``) computes registers here.
 
 A metric is a class decorated ``@register_metric("<name>")`` in a module
-``dancedata/experiments/metric_<name>.py`` (the registry imports every such module). It declares:
+``dancedata/study/metric_<name>.py`` (the registry imports every such module). It declares:
 
 * ``outputs``: the result names it computes, in the order results are listed (``fid_k``, ...);
 * ``needs``: what each scored sequence must hold (see :data:`NEEDS`: ``positions``, ``rows``,
