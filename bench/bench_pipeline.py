@@ -366,7 +366,8 @@ def main() -> int:
         "loader": load,
     }
     args.json.write_text(json.dumps(report, indent=2))
-    print(f"\nwrote {args.json.relative_to(REPO)}")
+    shown = args.json.resolve()
+    print(f"\nwrote {shown.relative_to(REPO) if shown.is_relative_to(REPO) else shown}")
     return 0
 
 
