@@ -6,11 +6,22 @@ Tests that use them are marked ``real_data``; they skip only when the folder is 
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
+# numba's on-disk cache of compiled functions (librosa's gufuncs, our kernels) breaks when two
+# processes compile the same function into it at once (a segfault on every later call, numba
+# issue 10128). Each pytest-xdist worker, and every command its tests start, gets a cache folder
+# of its own, set before anything imports numba; it goes when the worker ends.
+_NUMBA_CACHE = tempfile.mkdtemp(prefix="dancedata-tests-numba-")
+os.environ["NUMBA_CACHE_DIR"] = _NUMBA_CACHE
+atexit.register(shutil.rmtree, _NUMBA_CACHE, True)
 
 _DEFAULT_REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 

@@ -3,7 +3,9 @@
 - :class:`SerialExecutor` runs in this process (``--workers 1``, the default).
 - :class:`ProcessExecutor` runs a local pool of spawned processes (``--workers N``); each worker
   pins its numeric thread pools to one thread and stays alive for many tasks, so import and
-  numba compile costs are paid once per worker, not once per task.
+  numba compile costs are paid once per worker, not once per task; each worker slot has its own
+  numba cache folder (:mod:`dancedata.exec.numba_cache`: workers compiling the same function
+  into one cache at once can leave it crashing every later run).
 - :class:`DaskExecutor` runs on a Dask distributed cluster (``--dask tcp://host:8786``) or on a
   local one it starts (``--dask local:N``: N worker processes, one thread each).
 
@@ -28,9 +30,11 @@ import os
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import CancelledError
+from pathlib import Path
 from typing import Any
 
 from dancedata.errors import DancedataError
+from dancedata.exec.numba_cache import numba_cache_base, use_slot_cache
 from dancedata.exec.storage_env import apply_storage_env, storage_env
 from dancedata.exec.threads import pin_threads, single_threaded, thread_env
 
@@ -43,6 +47,8 @@ _POLL_S = 1.0
 # Seconds to fetch a finished task's result (small: a dict of counts) before looking again.
 _FETCH_TIMEOUT_S = 5.0
 _NOT_FETCHED = object()
+# Seconds a starting worker waits for its numba cache slot (they are all queued before it starts).
+_SLOT_TIMEOUT_S = 30.0
 # Seconds closing the client may take (the scheduler may be gone).
 _CLOSE_TIMEOUT_S = 10.0
 
@@ -68,12 +74,20 @@ def _quit_quietly(signum: int, frame: object) -> None:
     os._exit(128 + signum)
 
 
-def _init_worker(warmups: Sequence[Callable[[], None]]) -> None:
+def _init_worker(
+    warmups: Sequence[Callable[[], None]], slots: Any = None, numba_base: str | None = None
+) -> None:
     # Ctrl-C reaches every process of the terminal's group: a worker leaves at once without a
     # traceback (its task is not marked done, so a resumed run redoes it); the parent reports.
+    import queue
     import signal
 
     signal.signal(signal.SIGINT, _quit_quietly)
+    if slots is not None and numba_base is not None:
+        # Before anything imports numba: a numba cache folder no other worker writes.
+        # More workers than slots cannot happen in one pool; if it did, the shared cache is used.
+        with contextlib.suppress(queue.Empty):
+            use_slot_cache(Path(numba_base), slots.get(timeout=_SLOT_TIMEOUT_S))
     pin_threads(1)
     for warmup in warmups:
         warmup()
@@ -145,12 +159,17 @@ class ProcessExecutor(Executor):
             # Children read the thread limits from the environment before importing numpy.
             saved = {k: os.environ.get(k) for k in thread_env()}
             os.environ.update(thread_env(1))
+            context = multiprocessing.get_context("spawn")
+            # Each worker takes a slot number, hence a numba cache folder of its own.
+            slots = context.Queue()
+            for slot in range(self.workers):
+                slots.put(slot)
             try:
                 self._pool = ProcessPoolExecutor(
                     max_workers=self.workers,
-                    mp_context=multiprocessing.get_context("spawn"),
+                    mp_context=context,
                     initializer=_init_worker,
-                    initargs=(self.warmups,),
+                    initargs=(self.warmups, slots, str(numba_cache_base())),
                 )
             finally:
                 for key, value in saved.items():
