@@ -5,8 +5,8 @@ The reference is Bailando's own pipeline, transcribed in tests/test_metrics_refe
 as ``utils/metrics_new.py`` and ``utils/beat_align_score.py`` drive them: generated positions cut
 to their first N frames and made root-relative to their first frame, ground-truth features of
 every sequence (whole, root-relative), both z-scored by the ground truth; BAS on the whole
-generated sequence against the music beats cut to its length. Positions: the built-in
-edge_smpl_offsets skeleton (no model file).
+generated sequence against Bailando's music beats (``audio/beats_bailando``) cut to its length.
+Positions: the built-in edge_smpl_offsets skeleton (no model file).
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("conventions")
     run_cli("synth", "aist", str(root / "raw"), "--sequences", "4", "--seed", "2", "-q")
     run_cli("ingest", "aist", str(root / "raw"), "--store", str(root / "st"), "-q")
-    run_cli("featurize", str(root / "st"), "--audio-families", "fact", "-q")
+    run_cli("featurize", str(root / "st"), "--audio-families", "fact,bailando_beats", "-q")
     return root / "st"
 
 
@@ -81,7 +81,7 @@ def _bailando_reference(store: Path, generated: dict[str, np.ndarray]) -> dict[s
         out[f"div_{name}"] = ref_bailando_calculate_avg_distance(pred_n)
     scores = []
     for seq, positions in generated.items():  # the whole sequence
-        onehot = np.asarray(s.audio(seq, "beats")).reshape(-1)
+        onehot = np.asarray(s.audio(seq, "beats_bailando")).reshape(-1)
         motion_beats, length = ref_bailando_calc_db(positions)
         scores.append(ref_bailando_ba(ref_bailando_get_mb_from_onehot(onehot, length),
                                       motion_beats))  # fmt: skip
@@ -105,6 +105,7 @@ def test_bailando_convention_reproduces_bailandos_pipeline(
     assert params["feature_max_frames"] == CUT  # given explicitly: it wins over the preset's 1200
     assert params["fid_reference"] == "all_gt" and params["fid_origin"] == "first_frame_root"
     assert params["fid_eps"] == 1e-5 and params["max_frames"] is None
+    assert params["beat_source"] == "bailando"  # Bailando's BAS uses its own music beats
     results = {r["metric"]: r for r in record["results"]}
     want = _bailando_reference(store, generated)
     for metric, value in want.items():
@@ -115,6 +116,7 @@ def test_bailando_convention_reproduces_bailandos_pipeline(
     assert results["fid_k"]["n_frames"] == CUT * len(generated)
     # BAS is on the whole sequences, not the cut
     assert results["bas_bailando"]["n_frames"] == sum(len(p) for p in generated.values())
+    assert results["bas_bailando"]["convention"]["music_beats"].startswith("audio/beats_bailando")
     # The output names the convention and prints the row in the paper's order.
     lines = proc.stdout.splitlines()
     assert any(line.startswith("convention bailando: Bailando") for line in lines)
