@@ -1,5 +1,6 @@
 """Tempo of a music file in a fresh process: ``librosa.beat.beat_track`` (what ingest ran before)
-against :func:`dancedata.compute.tempo.estimate_tempo` (issue 23, item 5).
+against :func:`dancedata.compute.tempo.estimate_tempo` and the ``dancedata tempo`` command itself
+(issue 23, item 5).
 
 Each way runs in its own new Python process (imports, decoding and numba compilation included,
 as a user running one command pays them): decode the file to mono 22050 Hz, estimate, print.
@@ -12,6 +13,7 @@ real-data folder, ``$DANCEDATA_REAL_DATA`` or ``../shared/data/real``)
 
 from __future__ import annotations
 
+import json
 import os
 import resource
 import subprocess
@@ -40,17 +42,24 @@ print(estimate_tempo(onset_envelope(y)).bpm)
 """
 
 
-def run(code: str, path: Path) -> tuple[float, float, str]:
-    """(wall s, child CPU s, stdout) of ``code`` in a new interpreter."""
+# The command a user runs (CLI import, decode, estimate, the printed line), read back as JSON.
+COMMAND = ["-m", "dancedata.cli", "tempo", "--json"]
+
+
+def run(args: list[str], path: Path) -> tuple[float, float, str]:
+    """(wall s, child CPU s, BPM as text) of ``python ARGS PATH`` in a new interpreter."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run(
-        [sys.executable, "-c", code, str(path)], capture_output=True, text=True, check=True
+        [sys.executable, *args, str(path)], capture_output=True, text=True, check=True
     )
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return wall, cpu, done.stdout.strip()
+    out = done.stdout.strip()
+    if args is COMMAND:
+        out = str(json.loads(out)["tempo"][0]["bpm"])
+    return wall, cpu, out
 
 
 def main(argv: list[str]) -> int:
@@ -59,8 +68,13 @@ def main(argv: list[str]) -> int:
     print("| file | way | wall s | CPU s | BPM |")
     print("|---|---|---:|---:|---:|")
     for path in files:
-        for name, code in (("beat_track (before)", BEAT_TRACK), ("dancedata", DANCEDATA)):
-            wall, cpu, out = run(code, path)
+        ways = (
+            ("beat_track (before)", ["-c", BEAT_TRACK]),
+            ("dancedata estimate_tempo", ["-c", DANCEDATA]),
+            ("dancedata tempo (command)", COMMAND),
+        )
+        for name, args in ways:
+            wall, cpu, out = run(args, path)
             print(f"| {path.name} | {name} | {wall:.1f} | {cpu:.1f} | {float(out):.2f} |")
     print(f"load average at the end {os.getloadavg()[0]:.1f}")
     return 0

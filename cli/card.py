@@ -53,6 +53,6 @@ def card(
     if out is None:
         typer.echo(json.dumps(record, indent=2))
     elif as_json:
-        typer.echo(json.dumps({"wrote": str(write_croissant(record, out))}))
+        typer.echo(json.dumps({"wrote": str(write_croissant(record, out, store))}))
     else:
-        typer.echo(f"card: wrote {write_croissant(record, out)}")
+        typer.echo(f"card: wrote {write_croissant(record, out, store)}")

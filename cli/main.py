@@ -43,8 +43,9 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 # ``dancedata --help`` lists commands in the order a run uses them (then any others, as
 # registered), not alphabetically or by import order.
 PIPELINE_ORDER = (
-    "synth", "ingest", "featurize", "segment", "keyframes", "validate", "info", "versions",
-    "checkout", "unlock", "export", "plot", "render", "report", "experiment", "evaluate", "cache",
+    "synth", "ingest", "tempo", "featurize", "segment", "stats", "resample", "keyframes",
+    "validate", "info", "versions", "checkout", "unlock", "export", "plot", "render", "report",
+    "card", "experiment", "evaluate", "cache",
 )  # fmt: skip
 
 

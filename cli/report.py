@@ -42,5 +42,7 @@ def report(
     if record is not None:
         from dancedata.viz.croissant import croissant_record, write_croissant
 
-        typer.echo(f"report: wrote {write_croissant(croissant_record(store, version), record)}")
+        typer.echo(
+            f"report: wrote {write_croissant(croissant_record(store, version), record, store)}"
+        )
     typer.echo(f"report: wrote {write_report(html, out)} ({len(html.encode()) / 1e6:.2f} MB)")

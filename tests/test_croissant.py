@@ -113,3 +113,29 @@ def test_report_links_its_croissant_record(small_featurized_store, tmp_path) -> 
     record = tmp_path / "card.croissant.json"
     assert '<a href="card.croissant.json">Croissant JSON-LD</a>' in out.read_text()
     assert json.loads(record.read_text())["conformsTo"] == "http://mlcommons.org/croissant/1.0"
+
+
+def test_card_refuses_to_write_into_a_version_folder(small_featurized_store, tmp_path) -> None:
+    """A committed version holds only the files its checksums record: a record written into
+    versions/vN/ made validate fail ('file not recorded at commit'), so card refuses it."""
+    from dancedata.store.layout import StoreLayout
+
+    work = tmp_path / "store"
+    shutil.copytree(small_featurized_store, work)
+    version = StoreLayout(work).latest()
+    out = work / "versions" / version / "croissant.json"
+    proc = run_cli("card", str(work), "--out", str(out), check=False)
+    assert proc.returncode == 1 and proc.stdout == ""
+    assert proc.stderr.strip() == (
+        f"error: {out}: the Croissant record would go inside the store's version folder "
+        f"versions/{version}, which holds only the files recorded at its commit (validate would "
+        f"report it); write it outside the store, e.g. next to a published copy of "
+        f"versions/{version}/"
+    )
+    assert not out.exists()
+    assert run_cli("validate", str(work)).returncode == 0
+    beside = work / "card.json"  # the store's own folder, outside every version: allowed
+    assert (
+        run_cli("card", str(work), "--out", str(beside)).stdout.strip() == f"card: wrote {beside}"
+    )
+    assert run_cli("validate", str(work)).returncode == 0

@@ -103,9 +103,15 @@ def test_help_lists_commands_in_pipeline_order() -> None:
     text = run_cli("--help").stdout
     listed = [line.split()[0] for line in text.split("Commands:")[1].splitlines() if
               line.startswith("  ") and not line.startswith("   ")]  # fmt: skip
-    assert listed[:6] == ["synth", "ingest", "featurize", "segment", "keyframes", "validate"]
+    assert listed[:3] == ["synth", "ingest", "tempo"]
+    steps = ["featurize", "segment", "stats", "resample", "keyframes", "validate"]
+    assert [listed.index(name) for name in steps] == list(range(3, 9))
     assert listed.index("plot") < listed.index("render") < listed.index("report")
     assert listed != sorted(listed)
+    # every command has its place (tempo, stats, resample and card fell to the end unranked)
+    from dancedata.cli.main import PIPELINE_ORDER
+
+    assert listed == list(PIPELINE_ORDER)
 
 
 def test_usage_lines_have_no_placeholders() -> None:

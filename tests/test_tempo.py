@@ -98,6 +98,18 @@ def test_vibe_ace_estimate_equals_beat_track(real_data) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.real_data
+def test_tempo_command_line_on_vibe_ace(real_data) -> None:
+    """The line a user reads, by its exact text, on the real 61 s track."""
+    path = real_data / "audio" / "Kevin_MacLeod_-_Vibe_Ace.hq.ogg"
+    proc = run_cli("tempo", str(path))
+    assert proc.stdout.splitlines() == [
+        f"{path}: 129.2 BPM (confidence 0.29; half 64.6: 0.43, double 258.4: 0.28) over 61.5 s"
+    ]
+    assert proc.stderr == ""
+
+
+@pytest.mark.slow
 def test_tempo_command_text_json_and_errors(tmp_path) -> None:
     paths = []
     for bpm in (100.0, 128.0):

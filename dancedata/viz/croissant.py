@@ -260,10 +260,23 @@ def croissant_record(
     return {k: v for k, v in record.items() if v is not None}
 
 
-def write_croissant(record: dict[str, Any], out: Path) -> Path:
-    """Write ``record`` as indented JSON to ``out`` (a new name: never over a folder)."""
+def write_croissant(record: dict[str, Any], out: Path, store: str | Path | None = None) -> Path:
+    """Write ``record`` as indented JSON to ``out`` (a new name: never over a folder), never
+    inside a version folder of the local ``store``: a committed version holds only the files
+    its checksums record, so ``validate`` would report the record as an unrecorded file."""
     if out.is_dir():
         raise StoreError("the Croissant output is a folder; give a file name", out)
+    if store is not None and "://" not in str(store):
+        versions, target = (Path(store) / "versions").resolve(), out.resolve()
+        inside = target.relative_to(versions).parts if target.is_relative_to(versions) else ()
+        if len(inside) > 1:
+            raise StoreError(
+                f"the Croissant record would go inside the store's version folder "
+                f"versions/{inside[0]}, which holds only the files recorded at its commit "
+                "(validate would report it); write it outside the store, e.g. next to a "
+                f"published copy of versions/{inside[0]}/",
+                out,
+            )
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp")
     tmp.write_text(json.dumps(record, indent=2) + "\n")
