@@ -24,7 +24,7 @@ def test_lint_runs_ruff_and_mypy_on_mypy_paths() -> None:
         "$(BIN)/ruff format --check .",
         "$(BIN)/mypy $(MYPY_PATHS)",
     ]
-    assert {"dancedata/io", "dancedata/compute"} <= set(_mypy_paths())
+    assert {"dancedata/io", "dancedata/compute", "dancedata/store"} <= set(_mypy_paths())
 
 
 def test_pre_commit_mypy_hook_checks_the_same_paths() -> None:

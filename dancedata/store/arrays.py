@@ -18,6 +18,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     import zarr
+    from zarr.core.array_spec import ArrayConfigParams
 
 # Rows (frames) per chunk for every frame-concatenated array. One value for all arrays keeps
 # chunk boundaries aligned across arrays, so a work unit "chunk k" touches the same frames
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
 CHUNK_FRAMES = 8192
 
 # Write every chunk, even one equal to the fill value: an absent chunk then always means damage.
-WRITE_CONFIG: dict[str, Any] = {"write_empty_chunks": True}
+WRITE_CONFIG: ArrayConfigParams = {"write_empty_chunks": True}
 
 
 def checked_compressors(compressors: Any = "auto") -> list[Any]:

@@ -145,7 +145,7 @@ def _chunks(values: np.ndarray) -> list[bytes | memoryview]:
     """The array's bytes (no copy), then zeros up to a multiple of 64."""
     pieces: list[bytes | memoryview] = []
     if values.nbytes:
-        pieces.append(memoryview(values.reshape(-1)).cast("B"))
+        pieces.append(values.reshape(-1).data.cast("B"))  # .data: memoryview(values)
     pad = (-values.nbytes) % 64
     if pad:
         pieces.append(bytes(pad))

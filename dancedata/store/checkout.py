@@ -125,7 +125,8 @@ def builds_on(store: str | Path, latest: str, version: str) -> bool:
     layout = StoreLayout(store)
     try:
         command = layout.read_manifest(version).get("command")
-        current, seen = latest, set()
+        current: object = latest  # a manifest's parent: untrusted, checked to be a name
+        seen: set[str] = set()
         while isinstance(current, str) and current not in seen and len(seen) < 10_000:
             seen.add(current)
             manifest = layout.read_manifest(current)

@@ -20,7 +20,7 @@ import itertools
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 CRC32C_CODEC = "crc32c"
 
@@ -69,7 +69,8 @@ class ChunkGrid:
             return None
         from dancedata.store.metadata_checks import decoded_chunk_bytes
 
-        names = tuple(c.get("name") if isinstance(c, dict) else str(c) for c in codecs)
+        # array_meta_problem passed: every codec is a known name or a dict with one (a str)
+        names = tuple(cast(str, c.get("name")) if isinstance(c, dict) else str(c) for c in codecs)
         return cls(
             shape, chunk_shape, separator, name == "default", crc, decoded_chunk_bytes(meta), names
         )

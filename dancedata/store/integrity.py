@@ -143,6 +143,7 @@ def _chunk_files_per_array(version: StoreBackend) -> dict[str, int]:
         if not rel.startswith(prefix):
             continue
         inner = rel[len(prefix) :]
+        head: str | None  # the array path, None for a file that is no chunk
         head, sep, _tail = inner.partition("/c/")
         if not sep:
             head = inner[:-2] if inner.endswith("/c") else None
@@ -525,8 +526,11 @@ def _sharing_index(
     return shared
 
 
-def verify_store(store: str | Path, versions: list[str], *, deep: bool) -> dict[str, list[str]]:
-    """Problems per version, for the given committed versions of ``store``."""
+def verify_store(
+    store: str | Path | StoreBackend, versions: list[str], *, deep: bool
+) -> dict[str, list[str]]:
+    """Problems per version, for the given committed versions of ``store`` (anything
+    :class:`StoreLayout` opens: a path, a URL or a backend)."""
     layout = StoreLayout(store)
     cache = HashCache.empty()
     sharing = _sharing_index(layout, layout.committed_versions())

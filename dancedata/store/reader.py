@@ -121,7 +121,13 @@ class VersionReader:
             close = difflib.get_close_matches(name, self.array_names(), n=3, cutoff=0.8)
             hint = f"did you mean {', '.join(map(repr, close))}?" if close else "run featurize?"
             raise StoreError(f"version {self.version} has no array {name!r} ({hint})", self.path)
-        return self.root[name]  # type: ignore[index]
+        import zarr
+
+        root, node = self.root, None
+        if root is not None:
+            node = root[name]
+        assert isinstance(node, zarr.Array)  # has_array: data.zarr holds an array at name
+        return node
 
     def array_names(self) -> list[str]:
         """Every array path in data.zarr, e.g. ``motion/trans``, sorted."""

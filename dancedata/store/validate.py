@@ -308,10 +308,10 @@ def _check_ranges(reader: VersionReader, tables: dict[str, list[dict[str, Any]]]
     problems += _contiguous(sequences, "sequences")
     problems += _contiguous(tables.get("music", []), "music")
     for row in tables.get("measures", []):
-        seq = by_id.get(row["seq_id"])
-        if seq is None:
+        owner = by_id.get(row["seq_id"])
+        if owner is None:
             problems.append(f"measures: unknown seq_id {row['seq_id']}")
-        elif not (0 <= row["frame_start"] < row["frame_stop"] <= seq["n_frames"]):
+        elif not (0 <= row["frame_start"] < row["frame_stop"] <= owner["n_frames"]):
             problems.append(f"measures: {row['seq_id']} measure {row['measure']} out of range")
     for row in tables.get("splits", []):
         if row["seq_id"] not in by_id:

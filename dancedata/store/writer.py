@@ -422,7 +422,8 @@ class VersionWriter:
         base = self.layout.version_key(self.parent) if self.parent else None
         self.backend.publish(self._key(), final, leave_out=BUILD_DIR, last=MANIFEST_FILE, base=base)
         self.committed_as = name
-        spent, self.tmp_key, self.tmp = self.tmp_key, final, self.backend.where(final)
+        # self._key(): the temporary folder's key (self.tmp_key, never None past the checks above)
+        spent, self.tmp_key, self.tmp = self._key(), final, self.backend.where(final)
         try:
             self.layout.write_pointer(name)  # (locally a reader finds vN even if this fails)
             self.backend.delete(spent)  # what a copy left behind (object stores)
