@@ -240,6 +240,10 @@ def _pose_values(person: dict, path: Path, k: int) -> list:
 
 MAX_JSON_BYTES = 16 << 20  # one frame: 25 body + 70 face + 42 hand points for ~100 people is 1 MB
 MAX_INT_DIGITS = 20  # an integer in a keypoints file is a person id or a 0/1 coordinate
+# values of one frame, counted from commas and opening brackets before parsing: ~100 people of
+# 137 points (411 numbers each) are ~41,000; a parsed value costs 50-100 bytes whatever its text,
+# so 16 MiB of "[]," (5.6 million lists) took 535 MB
+MAX_JSON_VALUES = 1_000_000
 
 
 def _bounded_int(text: str) -> int:
@@ -265,6 +269,11 @@ def parse_keypoints_json(data: bytes, path: Path) -> tuple[str | None, list[int]
         raise InputError(f"not UTF-8 text (byte {exc.start})", path) from None
     if len(data) > MAX_JSON_BYTES:
         raise InputError(f"{len(data)} bytes: more than {MAX_JSON_BYTES} for one frame", path)
+    values = data.count(b",") + data.count(b"[") + data.count(b"{")
+    if values > MAX_JSON_VALUES:
+        raise InputError(
+            f"up to {values:,} JSON values: more than {MAX_JSON_VALUES:,} for one frame", path
+        )
     try:
         doc = json.loads(text, parse_int=_bounded_int, parse_float=_bounded_float)
     except json.JSONDecodeError as exc:

@@ -245,7 +245,7 @@ def _column_problem(table: Any, column: str, kind: str) -> str | None:
     if pa.types.is_null(values.type) or values.null_count == len(values):
         return None
     if not (pa.types.is_integer(values.type) or pa.types.is_floating(values.type)):
-        return None  # a column of another type: the column check of validate names it
+        return None  # another type: column_type_problem names it
     # plain Python values, no pyarrow compute kernel: those start Arrow's thread pool, and a
     # process exiting right after (a refusal) then aborts now and then (SIGABRT)
     data = np.array([v for v in values.to_pylist() if v is not None], dtype=np.float64)
@@ -271,8 +271,58 @@ def _column_problem(table: Any, column: str, kind: str) -> str | None:
     return f"{column} {shown} ({int(bad.sum())} rows out of range): {rule}"
 
 
+def _kind_of_arrow(arrow_type: Any) -> str:
+    import pyarrow as pa
+
+    if pa.types.is_null(arrow_type):
+        return "null"
+    if pa.types.is_integer(arrow_type) or pa.types.is_floating(arrow_type):
+        return "number"
+    if pa.types.is_string(arrow_type) or pa.types.is_large_string(arrow_type):
+        return "string"
+    if pa.types.is_boolean(arrow_type):
+        return "bool"
+    return str(arrow_type)
+
+
+# The contract's column types (schemas/store.schema.json) by kind: a reader may take an int64
+# where the contract says float64, but never a string where it computes with a number.
+_CONTRACT_KINDS = {
+    "float64": "number",
+    "float32": "number",
+    "int64": "number",
+    "int32": "number",
+    "int16": "number",
+    "string": "string",
+    "bool": "bool",
+}
+
+
+def column_type_problem(name: str, table: Any) -> str | None:
+    """The first column of a contract table whose type is of another kind than the contract's
+    (a string of frame rates, integer seq_ids), or None. Unknown tables and columns pass."""
+    from dancedata.store.contract import store_schema
+
+    spec = store_schema()["tables"].get(name)
+    if not isinstance(spec, dict):
+        return None
+    declared = {**spec.get("columns", {}), **spec.get("optional_columns", {})}
+    for column, type_name in declared.items():
+        if column not in table.column_names or type_name not in _CONTRACT_KINDS:
+            continue
+        actual = table.schema.field(column).type
+        kind = _kind_of_arrow(actual)
+        if kind not in ("null", _CONTRACT_KINDS[type_name]):
+            return f"column {column} is of type {actual}, expected {type_name}"
+    return None
+
+
 def table_problem(name: str, table: Any) -> str | None:
-    """The first value of a known table column that no computation may start from."""
+    """The first column of a known table of the wrong kind of type, or the first value of a
+    bounded column that no computation may start from."""
+    problem = column_type_problem(name, table)
+    if problem is not None:
+        return problem
     for column, kind in TABLE_BOUNDS.get(name, ()):
         if column in table.column_names:
             problem = _column_problem(table, column, kind)

@@ -32,6 +32,11 @@ from dancedata.errors import StoreError
 # Nesting of every JSON file a store holds: dancedata writes at most 8 levels (manifest config
 # tables, consolidated zarr metadata).
 JSON_MAX_DEPTH = 64
+# Values (container items) of one JSON file, counted from its commas and brackets before parsing:
+# a parsed value costs 50-100 bytes whatever its text, so 30 MB of "[]," (10 million lists, under
+# the manifest's size limit) took 1.5 GB and 90 s. 4 million values parse in about 300 MB; a
+# checksums.json spends 3 per file (1.3 million files), a manifest 5-10 per input.
+JSON_MAX_VALUES = 4_000_000
 
 # Size limits of the store's JSON files (bytes): generous for real stores (a manifest of 10,000
 # inputs is ~3 MB, a checksums.json of 100,000 files ~15 MB), far below memory trouble.
@@ -128,21 +133,40 @@ def read_regular(path: str | Path, limit: int | None = None) -> bytes:
 
 
 def json_depth_problem(value: Any, max_depth: int = JSON_MAX_DEPTH) -> str | None:
-    """ "nested deeper than N levels" when ``value`` is (walked without recursion), else None."""
-    stack: list[tuple[Any, int]] = [(value, 1)]
+    """ "nested deeper than N levels" when ``value`` is (walked without recursion, one iterator
+    per open level, so a flat list of millions costs no copy), else None."""
+    if not isinstance(value, dict | list):
+        return None
+    stack = [iter(value.values() if isinstance(value, dict) else value)]
     while stack:
-        node, depth = stack.pop()
-        if isinstance(node, dict | list):
-            if depth > max_depth:
-                return f"nested deeper than {max_depth} levels"
-            children = node.values() if isinstance(node, dict) else node
-            stack.extend((child, depth + 1) for child in children if isinstance(child, dict | list))
+        for child in stack[-1]:
+            if isinstance(child, dict | list):
+                if len(stack) >= max_depth:
+                    return f"nested deeper than {max_depth} levels"
+                stack.append(iter(child.values() if isinstance(child, dict) else child))
+                break
+        else:
+            stack.pop()
+    return None
+
+
+def json_values_problem(data: bytes | str, max_values: int = JSON_MAX_VALUES) -> str | None:
+    """ "holds more than N values" when the text of ``data`` may (an upper bound from its commas
+    and opening brackets, which a string may also hold), else None. Counted without parsing."""
+    marks = (",", "[", "{") if isinstance(data, str) else (b",", b"[", b"{")
+    count = sum(data.count(mark) for mark in marks)  # type: ignore[arg-type]
+    if count > max_values:
+        return f"holds up to {count:,} values, over the reader's limit of {max_values:,}"
     return None
 
 
 def parse_json(data: bytes | str, where: Any, what: str, *, max_depth: int = JSON_MAX_DEPTH) -> Any:
     """``data`` parsed as JSON; StoreError naming ``where`` ("unreadable <what>: ...") when it
-    is not JSON, nested too deeply, or holds a number too long to convert."""
+    is not JSON, nested too deeply, holds too many values (:data:`JSON_MAX_VALUES`, checked
+    before parsing) or a number too long to convert."""
+    problem = json_values_problem(data)
+    if problem is not None:
+        raise StoreError(f"unreadable {what}: {problem} (not parsed)", where)
     try:
         value = json.loads(data)
     except RecursionError:
@@ -203,8 +227,10 @@ def special_entries(
 
 __all__ = [
     "JSON_MAX_DEPTH",
+    "JSON_MAX_VALUES",
     "UnsafeFile",
     "json_depth_problem",
+    "json_values_problem",
     "open_regular",
     "parse_json",
     "read_json",

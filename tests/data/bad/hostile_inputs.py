@@ -648,6 +648,19 @@ def openpose_long_number(work: Path, store: Path) -> list[Command]:
     ]
 
 
+@hostile_case("pose-files", note="OpenPose JSON of 16 MiB of empty lists (5.6 million values)")
+def openpose_many_values(work: Path, store: Path) -> list[Command]:
+    poses = openpose_folder(work / "poses", "clip")
+    count = (16 << 20) // 3 - 10  # just under the 16 MiB size limit; parsed it took 535 MB
+    doc = b'{"people": [' + b"[]," * (count - 1) + b"[]]}"
+    (poses / "clip_000000000003_keypoints.json").write_bytes(doc)
+    out = work / "vstore"
+    return [
+        ingest_video(poses, out, expect=r"values", json=True),
+        ingest_video(poses, out, "--on-error", "skip", expect_exit=0),
+    ]
+
+
 @hostile_case("pose-files", note="a frame index of 3e8 in an OpenPose file name")
 def openpose_huge_index(work: Path, store: Path) -> list[Command]:
     poses = openpose_folder(work / "poses", "clip")

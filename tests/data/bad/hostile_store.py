@@ -706,3 +706,89 @@ def parquet_row_bomb(work: Path, store: Path) -> list[Command]:
     os.replace(tmp, path)
     reseal(version(store))
     return readers(work, store, "rows", write=False)
+
+
+# -- an attacker's review of the readers (cases beyond the issue's list) -----------------------
+def many_values(count: int) -> bytes:
+    """A JSON object holding one list of ``count`` empty lists: 3 bytes of text a value, 50-100
+    bytes each once parsed (30 MB of it took 1.5 GB and 90 s before the value limit)."""
+    return b'{"x": [' + b"[]," * (count - 1) + b"[]]}"
+
+
+@hostile_case("store-metadata", note="checksums.json of 120 MB of empty lists (40 million values)")
+def checksums_many_values(work: Path, store: Path) -> list[Command]:
+    replace(version(store) / "checksums.json", many_values(40_000_000))
+    return validate_only(store, "values") + validate_only(store, "values", True)
+
+
+@hostile_case("store-metadata", note="manifest.json of 30 MB of empty lists (10 million values)")
+def manifest_many_values(work: Path, store: Path) -> list[Command]:
+    replace(version(store) / "manifest.json", many_values(10_000_000))
+    # as a nested manifest: validate reports the damaged version, readers pass over it to v2
+    return readers(
+        work,
+        store,
+        "manifest",
+        write=False,
+        passes=("info", "report", "render", "plot", "export bvh", "evaluate"),
+        expects={"experiment": "manifest|measures table"},
+    )
+
+
+@hostile_case("store-metadata", note="the root zarr.json of 30 MB of empty lists")
+def zarr_json_many_values(work: Path, store: Path) -> list[Command]:
+    replace(version(store) / "data.zarr" / "zarr.json", many_values(10_000_000))
+    return readers(work, store, "zarr.json", write=False)
+
+
+@hostile_case("store-metadata", note="checksums.json listing ../../etc/passwd and /dev/zero")
+def checksums_outside(work: Path, store: Path) -> list[Command]:
+    from dancedata.store.checksums import canonical_json
+
+    path = version(store) / "checksums.json"
+    record = json.loads(path.read_text())
+    record["files"]["../../../../../etc/passwd"] = {"bytes": 1, "sha256": "0" * 64}
+    record["files"]["/dev/zero"] = {"bytes": 1, "sha256": "0" * 64}
+    body = {k: v for k, v in record.items() if k != "digest"}
+    record["digest"] = hashlib.sha256(canonical_json(body).encode()).hexdigest()
+    replace(path, json.dumps(record).encode())
+    # only files found inside the version are opened: the two names are reported missing
+    return validate_only(store, "missing") + validate_only(store, "missing", True)
+
+
+def retype_column(vdir: Path, name: str, column: str, convert) -> None:
+    """Rewrite ``<name>.parquet`` with ``column`` replaced by ``convert(values)`` (its type
+    following the new values)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    path = vdir / f"{name}.parquet"
+    table = pq.read_table(path)
+    index = table.column_names.index(column)
+    table = table.set_column(index, column, pa.array(convert(table.column(column).to_pylist())))
+    tmp = path.with_name(path.name + ".plant")
+    pq.write_table(table, tmp)
+    os.replace(tmp, path)
+
+
+@hostile_case("values", note="the sequences fps column of strings ('60.0')")
+def fps_column_strings(work: Path, store: Path) -> list[Command]:
+    for name in ("v1", "v2", "v3"):
+        retype_column(version(store, name), "sequences", "fps", lambda v: [str(x) for x in v])
+        reseal(version(store, name))
+    return readers(work, store, "fps", write=False)
+
+
+@hostile_case("values", note="the sequences seq_id column of integers")
+def seq_id_column_ints(work: Path, store: Path) -> list[Command]:
+    for name in ("v1", "v2", "v3"):
+        retype_column(version(store, name), "sequences", "seq_id", lambda v: list(range(len(v))))
+        reseal(version(store, name))
+    return readers(work, store, "seq_id", write=False)
+
+
+@hostile_case("values", note="the measures frame_start column of strings")
+def measures_column_strings(work: Path, store: Path) -> list[Command]:
+    retype_column(version(store), "measures", "frame_start", lambda v: [str(x) for x in v])
+    reseal(version(store))
+    return readers(work, store, "frame_start", write=False, skip=("export bvh",))
