@@ -151,10 +151,13 @@ def json_depth_problem(value: Any, max_depth: int = JSON_MAX_DEPTH) -> str | Non
 
 
 def json_values_problem(data: bytes | str, max_values: int = JSON_MAX_VALUES) -> str | None:
-    """ "holds more than N values" when the text of ``data`` may (an upper bound from its commas
-    and opening brackets, which a string may also hold), else None. Counted without parsing."""
-    marks = (",", "[", "{") if isinstance(data, str) else (b",", b"[", b"{")
-    count = sum(data.count(mark) for mark in marks)  # type: ignore[arg-type]
+    """A problem ("holds up to N values") when the text of ``data`` may hold more than
+    ``max_values`` JSON values (an upper bound from its commas and opening brackets, which a
+    string may also hold), else None. Counted without parsing."""
+    if isinstance(data, str):
+        count = data.count(",") + data.count("[") + data.count("{")
+    else:
+        count = data.count(b",") + data.count(b"[") + data.count(b"{")
     if count > max_values:
         return f"holds up to {count:,} values, over the reader's limit of {max_values:,}"
     return None
