@@ -25,6 +25,17 @@ Tolerances, per array (:data:`TOLERANCE`, absolute, on the arrays as stored):
   another BLAS/FFT build and is still 100× below any change of the algorithm (a wrong mask or
   a changed neighbour set moves these arrays by percent); the stems' onset peaks must stay
   identical, which is the sharper check.
+* except at a few frames of the repetition-based stems (``stems/vocals``, ``stems/other``;
+  :data:`FLIP_RUNS`). The repeating background of a frame is the median of its 21 most similar
+  frames; where the 21st and 22nd are within float32 rounding of each other, a decoder or FFT
+  build that rounds the input differently (FACT arrays still within 4 ulp) picks the other
+  frame, and that frame's background, its stems and the features whose windows cover it change
+  by percent. Measured on Vibe Ace with NumPy 2.4.6 / SciPy 1.17.1 / soundfile 0.14.0 against
+  the reference made elsewhere: three runs of at most 9 frames (0.6 % of the frames), one vocal
+  onset peak moved by a frame. Such deviations are allowed only as short runs: at most
+  :data:`FLIP_RUNS` runs of at most :data:`FLIP_RUN_FRAMES` frames, which an algorithm change
+  (every frame moves) cannot satisfy; every other frame keeps the 1e-5 tolerance, and an onset
+  peak may differ only inside such a run.
 """
 
 from __future__ import annotations
@@ -41,6 +52,10 @@ REFERENCE = Path(__file__).resolve().parent / "data" / "audio_reference" / "refe
 EXACT = ("onset_peaks", "beats")
 ULPS = 4
 RELATIVE: dict[str, float] = {"stems/": 1e-5, "nmfd_drums": 1e-5}  # prefix → share of the max
+# Stems from the repetition-based separation: near-tied neighbour choices may flip (docstring).
+FLIPPING = ("stems/vocals/", "stems/other/")
+FLIP_RUNS = 8  # runs of frames beyond tolerance, per array
+FLIP_RUN_FRAMES = 16  # frames per run
 
 
 def stored() -> dict[str, dict[str, np.ndarray]]:
@@ -72,14 +87,40 @@ def compare(track: str, path: Path) -> dict[str, float]:
     names = sorted(k for k in expected if not k.startswith("_"))
     assert sorted(actual) == names
     deviations: dict[str, float] = {}
-    for name in names:
+    flipped: dict[str, np.ndarray] = {}  # stem folder → frames inside a flip run
+    for name in sorted(names, key=lambda n: n.endswith("onset_peaks")):  # peaks after the rest
         want, got = expected[name], np.asarray(actual[name])
         assert got.shape == want.shape, name
         assert got.dtype == want.dtype, name
-        deviation = float(np.max(np.abs(got.astype(np.float64) - want))) if want.size else 0.0
-        deviations[name] = deviation
-        assert deviation <= tolerance(name, want), (name, deviation, tolerance(name, want))
+        if not want.size:
+            deviations[name] = 0.0
+            continue
+        gap = np.abs(got.astype(np.float64) - want)
+        per_frame = gap.reshape(len(gap), -1).max(axis=1)
+        deviations[name] = float(per_frame.max())
+        folder = name.rsplit("/", 1)[0] + "/"
+        if folder not in FLIPPING:
+            assert deviations[name] <= tolerance(name, want), (name, deviations[name])
+            continue
+        beyond = per_frame > tolerance(name, want)
+        if name.endswith("onset_peaks"):
+            inside = flipped.get(folder, np.zeros(len(per_frame), dtype=bool))
+            assert not (beyond & ~inside).any(), (name, np.nonzero(beyond & ~inside)[0][:10])
+            continue
+        runs = flip_runs(beyond)
+        assert len(runs) <= FLIP_RUNS, (name, len(runs), runs[:10])
+        assert all(b - a <= FLIP_RUN_FRAMES for a, b in runs), (name, runs)
+        inside = flipped.setdefault(folder, np.zeros(len(per_frame), dtype=bool))
+        for a, b in runs:
+            inside[max(0, a - 2) : b + 2] = True  # a peak may move by a frame or two
     return deviations
+
+
+def flip_runs(beyond: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) of each run of True in ``beyond`` (frames over tolerance)."""
+    edges = np.diff(np.concatenate([[0], beyond.astype(np.int8), [0]]))
+    starts, stops = np.nonzero(edges == 1)[0].tolist(), np.nonzero(edges == -1)[0].tolist()
+    return list(zip(starts, stops, strict=True))
 
 
 @pytest.mark.parametrize("track", ["synth_a", "synth_b", "synth_c"])
@@ -116,3 +157,12 @@ def test_only_the_stem_arrays_are_relaxed() -> None:
         assert tolerance(name, values) == 0.0
     for name in ("stems/vocals/onset_env", "stems/other/mfcc", "nmfd_drums"):
         assert tolerance(name, values) == pytest.approx(2e-5)
+
+
+def test_flip_runs_are_found_and_bounded() -> None:
+    """The run finder the stem allowance rests on: runs of frames over tolerance."""
+    beyond = np.zeros(40, dtype=bool)
+    beyond[[3, 4, 5, 20, 39]] = True
+    assert flip_runs(beyond) == [(3, 6), (20, 21), (39, 40)]
+    assert flip_runs(np.zeros(5, dtype=bool)) == []
+    assert flip_runs(np.ones(5, dtype=bool)) == [(0, 5)]
