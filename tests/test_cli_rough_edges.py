@@ -53,8 +53,16 @@ def test_ctrl_c_says_interrupted_cleans_up_and_a_rerun_resumes(aist_store, tmp_p
     store = tmp_path / "store"
     subprocess.run(["cp", "-r", str(aist_store), str(store)], check=True)
     args = [*CLI, "featurize", str(store), "--stems", "none"]
+    # An empty feature cache of its own: with the session's cache warm (other tests featurized
+    # the same music) this featurize finished within the 0.5 s before the interrupt.
+    env = {**os.environ, "DANCEDATA_CACHE": str(tmp_path / "empty-feature-cache")}
     proc = subprocess.Popen(
-        args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint
+        args,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_default_sigint,
+        env=env,
     )
     lock = store / ".lock"
     deadline = time.monotonic() + 120
@@ -62,7 +70,7 @@ def test_ctrl_c_says_interrupted_cleans_up_and_a_rerun_resumes(aist_store, tmp_p
     while not (lock.exists() and list((store / "versions").glob(".tmp-*"))):
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
         time.sleep(0.05)
-    time.sleep(0.5)
+    time.sleep(0.1)  # mid-write: the audio of two tracks takes about 1.5 s more
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, (out, err)
