@@ -12,7 +12,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dancedata.compute.bvh_ops import world_positions
 from dancedata.errors import InputError
 from dancedata.io import bvh
 from dancedata.io.bvh import (
@@ -22,6 +21,7 @@ from dancedata.io.bvh import (
     read_bvh,
     root_translation,
 )
+from dancedata.io.bvh_ops import world_positions
 
 # file, joints, channels, frames, frame time (as printed), nominal fps, End Sites, orders
 REAL_FILES = [

@@ -9,7 +9,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from dancedata.compute.bvh_ops import clip_from_rotations, local_rotmats, world_positions
 from dancedata.compute.euler_continuity import euler_alternative, euler_continuous, euler_nearest
 from dancedata.compute.fk import forward_kinematics
 from dancedata.io.bvh import (
@@ -25,6 +24,7 @@ from dancedata.io.bvh import (
     scale_clip,
     write_bvh,
 )
+from dancedata.io.bvh_ops import clip_from_rotations, local_rotmats, world_positions
 
 NAMES = [
     "01_01.bvh",

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import dancedata
-from dancedata.compute.smpl_skeletons import smpl_skeleton
+from dancedata.io.smpl_skeletons import smpl_skeleton
 from dancedata.metrics import motion_feature_matrix
 from dancedata.metrics.beats import beat_frames
 from tests.helpers import run_cli

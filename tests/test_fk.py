@@ -9,7 +9,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from dancedata.compute.bvh_ops import clip_from_rotations, local_rotmats, world_positions
 from dancedata.compute.fk import (
     forward_kinematics,
     topological_order,
@@ -17,6 +16,7 @@ from dancedata.compute.fk import (
     world_transforms,
 )
 from dancedata.io.bvh import BvhClip, BvhSkeleton, local_translations, read_bvh
+from dancedata.io.bvh_ops import clip_from_rotations, local_rotmats, world_positions
 
 
 def _reference_fk(clip: BvhClip, frame: int) -> tuple[np.ndarray, list[np.ndarray]]:

@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dancedata.compute.bvh_ops import world_positions
 from dancedata.compute.fk import forward_kinematics
 from dancedata.compute.ik import (
     IK_METHOD,
@@ -34,6 +33,7 @@ from dancedata.errors import InputError
 from dancedata.featurize.families.motion import MotionBatch, MotionSettings
 from dancedata.featurize.families.motion_ik import RotationsFromPositionsFamily
 from dancedata.io.bvh import read_bvh
+from dancedata.io.bvh_ops import world_positions
 from dancedata.io.openpose import BODY_25, COCO_18
 from dancedata.store.reader import VersionReader
 from tests.helpers import run_cli

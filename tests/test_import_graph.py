@@ -4,18 +4,20 @@ upward import; the folders are the layers.
 Allowed direction, lowest first (a module may import its own layer and the layers below it,
 never one above):
 
-    foundation → io → compute → methods → store → exec → read → steps → study → api → cli
+    foundation → compute → io → methods → store → exec → read → steps → study → api → cli
 
 * Every module takes the layer of its top folder (:data:`LAYER_OF`): a new module in a folder
   needs no entry; a new folder does, with its reason. Only the foundation modules
   (``errors``, ``progress``, ``_version``) sit loose in ``dancedata/``
   (:func:`test_only_foundation_modules_are_loose`).
-* foundation imports nothing of dancedata; io parses files; compute is pure array code (it may
-  take io's parsed types); methods and metrics are the pure keyframe, in-betweening and scoring
-  code; store persists; exec runs work units; read reads stores; the steps (ingest, featurize,
-  synth, export, viz) write stores or files from them; study runs keyframes, evaluations and
-  experiments over stores with the methods and metrics; api is ``dancedata/__init__``
-  (``open_store``); the CLI is a thin shell. ``dancedata/`` never imports ``cli``.
+* foundation imports nothing of dancedata; compute is pure array code (no files, no formats);
+  io parses and writes files, on compute's array functions (the BVH clip operations, the choice
+  of SMPL skeleton from a model file); methods and metrics are the pure keyframe,
+  in-betweening and scoring code; store persists; exec runs work units; read reads stores; the
+  steps (ingest, featurize, synth, export, viz) write stores or files from them; study runs
+  keyframes, evaluations and experiments over stores with the methods and metrics; api is
+  ``dancedata/__init__`` (``open_store``); the CLI is a thin shell. ``dancedata/`` never
+  imports ``cli``.
 * Sideways: featurize and study do not reach into ingest (they read what it wrote through the
   store), although they share or sit above its layer.
 * Packages: the graph collapsed onto the children of every package (each subpackage one node)
@@ -54,8 +56,8 @@ SOURCES = ((REPO / "dancedata", "dancedata"), (REPO / "cli", "dancedata.cli"))
 
 LAYERS: tuple[str, ...] = (
     "foundation",
-    "io",
     "compute",
+    "io",
     "methods",
     "store",
     "exec",

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dancedata.compute.bvh_ops import world_positions
 from dancedata.io.bvh import BvhClip, BvhSkeleton, read_bvh, write_bvh
+from dancedata.io.bvh_ops import world_positions
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import VersionReader
 from dancedata.store.validate import validate_store

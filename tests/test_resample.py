@@ -12,7 +12,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation, Slerp
 
-from dancedata.compute.bvh_ops import local_rotmats, resample_clip
 from dancedata.compute.resample import (
     decimation_step,
     resample_motion,
@@ -21,6 +20,7 @@ from dancedata.compute.resample import (
     slerp,
 )
 from dancedata.io.bvh import euler_degrees, read_bvh
+from dancedata.io.bvh_ops import local_rotmats, resample_clip
 
 
 def _random_motion(n_frames: int, n_joints: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -22,8 +22,8 @@ from dancedata.compute.smpl_skeleton import (
     EDGE_SMPL_SKELETON,
     SMPL24_PARENTS,
 )
-from dancedata.compute.smpl_skeletons import skeleton_name, smpl_skeleton
 from dancedata.errors import InputError
+from dancedata.io.smpl_skeletons import skeleton_name, smpl_skeleton
 from dancedata.store.reader import VersionReader
 from tests.helpers import run_cli
 

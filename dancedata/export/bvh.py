@@ -37,7 +37,6 @@ from typing import Any
 
 import numpy as np
 
-from dancedata.compute.bvh_ops import clip_from_rotations
 from dancedata.compute.fk import topological_order
 from dancedata.compute.rotations import axis_angle_to_rotmat
 from dancedata.errors import InputError, StoreError
@@ -50,6 +49,7 @@ from dancedata.io.bvh import (
     write_bvh,
 )
 from dancedata.io.bvh_attrs import is_bvh_skeleton, skeleton_from_attrs
+from dancedata.io.bvh_ops import clip_from_rotations
 from dancedata.read.sequence_reader import known_ids
 from dancedata.store.reader import VersionReader
 
@@ -168,8 +168,8 @@ def _rest_offsets(
 ) -> tuple[np.ndarray, str]:
     """Rest OFFSETs (metres) of a skeleton without a channel layout, and their source."""
     from dancedata.compute.smpl import SMPL_JOINTS
-    from dancedata.compute.smpl_skeletons import smpl_skeleton
     from dancedata.io.smpl_model import SMPL_MODEL_ENV
+    from dancedata.io.smpl_skeletons import smpl_skeleton
 
     n = len(skel_attrs["joints"])
     if skel_attrs.get("offsets") is not None:

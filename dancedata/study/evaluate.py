@@ -10,7 +10,7 @@ Assumptions, recorded in the record: generated motion runs at the store's frame 
 beside ground-truth frame i, in SMPL's frame (metres, y up). On SMPL-24 stores ground-truth
 positions come from forward kinematics of the stored rotations about the run's rest skeleton:
 ``smpl_model`` when given, else the built-in ``edge_smpl_offsets``
-(:mod:`dancedata.compute.smpl_skeletons`); generated rotations are posed the same way (a file
+(:mod:`dancedata.io.smpl_skeletons`); generated rotations are posed the same way (a file
 holding positions only is used as it is). The skeleton is recorded in ``config.skeleton`` and in the
 convention of every metric computed from positions. Other stores: ``smpl_model`` if given,
 else the store's ``motion/positions``. Music beats are the store's ``audio/beats`` (librosa
@@ -32,7 +32,6 @@ import numpy as np
 
 from dancedata._version import __version__
 from dancedata.compute.smpl import SMPL_JOINTS
-from dancedata.compute.smpl_skeletons import smpl_skeleton
 from dancedata.errors import DancedataError, InputError, StoreError
 from dancedata.io.generated_motion import (
     GENERATED_SUFFIXES,
@@ -40,6 +39,7 @@ from dancedata.io.generated_motion import (
     generated_frame_limit,
     read_generated_motion,
 )
+from dancedata.io.smpl_skeletons import smpl_skeleton
 from dancedata.metrics.beats import beat_frames
 from dancedata.metrics.evaluate_inputs import (
     axis_angle_euler,

@@ -27,7 +27,6 @@ import numpy as np
 from dancedata.compute.fk import forward_kinematics
 from dancedata.compute.rotations import axis_angle_to_rotmat
 from dancedata.compute.smpl import SMPL_JOINTS
-from dancedata.compute.smpl_skeletons import skeleton_name, smpl_skeleton
 from dancedata.errors import InputError
 from dancedata.featurize.families.motion_base import (
     ArraySpec,
@@ -38,6 +37,7 @@ from dancedata.featurize.families.motion_base import (
 from dancedata.featurize.family import register_family
 from dancedata.featurize.source_arrays import source_array
 from dancedata.io.smpl_model import SMPL_MODEL_HELP
+from dancedata.io.smpl_skeletons import skeleton_name, smpl_skeleton
 
 __all__ = ["PositionsFamily", "smpl_model_identity"]
 

@@ -11,7 +11,7 @@ Order of operations (each optional step recorded in the manifest config):
    decimation also acts as an anti-alias filter. Euler channels are then re-derived on the
    branch nearest the original curves (winding kept). Translations are not smoothed;
 4. resample (``--fps``): exact decimation for an integer rate ratio, SLERP otherwise
-   (:func:`~dancedata.compute.bvh_ops.resample_clip`);
+   (:func:`~dancedata.io.bvh_ops.resample_clip`);
 5. arrays, all float64 here (the store keeps float32): ``euler`` (radians, each joint's own
    order), ``axis_angle``, ``trans`` (root position, metres), ``positions`` (FK, metres) and,
    for rigs with position channels on non-root joints, ``local_translations`` (each joint's
@@ -27,12 +27,6 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dancedata.compute.bvh_ops import (
-    clip_from_rotations,
-    local_rotmats,
-    resample_clip,
-    world_positions,
-)
 from dancedata.compute.bvh_units import PLAUSIBLE_SIZE_M, LengthUnit, check_rig_size, rig_size
 from dancedata.compute.smoothing import smooth_quaternions
 from dancedata.errors import InputError
@@ -45,6 +39,12 @@ from dancedata.io.bvh import (
     read_bvh,
     root_translation,
     scale_clip,
+)
+from dancedata.io.bvh_ops import (
+    clip_from_rotations,
+    local_rotmats,
+    resample_clip,
+    world_positions,
 )
 
 __all__ = ["BvhMotion", "BvhSettings", "has_joint_translations", "process_bvh"]
