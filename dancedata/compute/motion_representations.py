@@ -32,13 +32,14 @@ EulerOrder = str | list[str]
 
 def representation_attrs(name: str, euler_order: EulerOrder) -> dict[str, object]:
     """The attrs the contract requires on each stored representation."""
-    return {
+    attrs: dict[str, dict[str, object]] = {
         "rotmat": {"units": "1"},
         "euler": {"order": euler_order, "units": "rad"},
         "quat": {"quat_order": "wxyz", "sign": "continuous over time within each sequence"},
         "rot6d": {"rot6d_layout": ROT6D_LAYOUT},
         "rot6d_rows": {"rot6d_layout": ROT6D_ROWS_LAYOUT},
-    }[name]
+    }
+    return attrs[name]
 
 
 def row_shape(name: str, n_joints: int) -> tuple[int, ...]:

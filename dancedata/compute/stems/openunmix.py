@@ -195,8 +195,8 @@ def run_chunked(
     with torch.inference_mode():
         for i, (start, stop) in enumerate(bounds):
             short = max(0, int(separator.stft.n_fft) - (stop - start))  # STFT reflect padding
-            piece = np.pad(audio[None, :, start:stop], ((0, 0), (0, 0), (0, short)))
-            piece = torch.as_tensor(piece, dtype=torch.float32, device=device)
+            padded = np.pad(audio[None, :, start:stop], ((0, 0), (0, 0), (0, short)))
+            piece = torch.as_tensor(padded, dtype=torch.float32, device=device)
             estimate = separator(piece)[0].detach().cpu().numpy()[..., : stop - start]
             if not np.all(np.isfinite(estimate)) and separator.niter > 0:
                 estimate = _without_em(separator, piece)
