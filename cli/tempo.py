@@ -26,7 +26,13 @@ def tempo(
 
     Example: dancedata tempo music/mBR0.wav music/mPO1.ogg --json
     """
-    from dancedata.compute.tempo import TEMPO_HOP, TEMPO_SR, estimate_tempo, onset_envelope
+    from dancedata.compute.tempo import (
+        START_BPM,
+        TEMPO_HOP,
+        TEMPO_SR,
+        estimate_tempo,
+        onset_envelope,
+    )
     from dancedata.io.audio import load_mono
 
     results = []
@@ -44,3 +50,12 @@ def tempo(
         ]
         method = {"method": "librosa.beat.beat_track tempo", "sr": TEMPO_SR, "hop": TEMPO_HOP}
         typer.echo(json.dumps({"tempo": rows, "estimator": method}, indent=2))
+        return
+    stronger = [path for path, _, estimate in results if estimate.stronger_alternative()]
+    if stronger:
+        typer.echo(
+            f"note: in {len(stronger)} of {len(results)} file(s) the half or double has the higher "
+            f"confidence: the estimate weighs the tempogram by a prior around {START_BPM:g} BPM "
+            "(as librosa's beat_track and ingest do), the confidence does not; if you know the "
+            "tempo, pass it to ingest with --bpm"
+        )

@@ -62,6 +62,14 @@ class TempoEstimate:
             "double_confidence": self.double_confidence,
         }
 
+    def stronger_alternative(self) -> str | None:
+        """``"half"`` or ``"double"`` when that candidate's confidence exceeds the estimate's (the
+        estimate follows the tempo prior, the confidence does not), else None."""
+        best = max(
+            ("half", self.half_confidence), ("double", self.double_confidence), key=lambda x: x[1]
+        )
+        return best[0] if best[1] > self.confidence else None
+
     def line(self) -> str:
         """One line: ``129.2 BPM (confidence 0.52; half 64.6: 0.21, double 258.4: 0.27)``."""
         return (
