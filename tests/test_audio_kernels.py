@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from dancedata.compute.audio_features import AudioFeatureConfig, beat_frames, onset_envelope
-from dancedata.compute.jit_kernels import median_network, neighbour_median
+from dancedata.compute.jit_kernels import median_network, neighbour_median, selection_network
 from dancedata.compute.stems.offline import repetition_background, softmask
 from dancedata.synth.music import synth_dance_music
 
@@ -104,13 +104,25 @@ def test_median_filter_axis_is_scipys_median_filter(order, axis, size) -> None:
     from dancedata.compute.stems.offline import median_filter_axis
 
     rng = np.random.default_rng(size + axis)
-    mag = (rng.random((300, 333)) ** 3).astype(np.float32)
+    mag = (rng.random((300, 333 + axis)) ** 3).astype(np.float32)  # odd and even line counts
     mag[:, :20] = np.round(mag[:, :20] * 3)  # ties
     mag = np.asarray(mag, order=order)
     sizes = [1, 1]
     sizes[axis] = size
     want = scipy.ndimage.median_filter(mag, size=tuple(sizes), mode="reflect")
     np.testing.assert_array_equal(median_filter_axis(mag, size, axis), want)
+
+
+@pytest.mark.parametrize("n", [2, 6, 30])
+def test_selection_network_selects_both_middle_ranks(n) -> None:
+    rng = np.random.default_rng(n)
+    values = np.round(rng.standard_normal((n, 2000)) * 2).astype(np.float32)
+    want = np.sort(values, axis=0)[n // 2 - 1 : n // 2 + 1]
+    for a, b in selection_network(n, (n // 2 - 1, n // 2)):
+        values[a], values[b] = np.minimum(values[a], values[b]), np.maximum(values[a], values[b])
+    np.testing.assert_array_equal(values[n // 2 - 1 : n // 2 + 1], want)
+    with pytest.raises(ValueError, match="cannot select"):
+        selection_network(n, (n,))
 
 
 def test_repetition_background_is_the_brute_force_median_of_the_nearest_frames() -> None:
@@ -138,3 +150,27 @@ def test_offline_stems_from_a_shared_stft_are_the_stems_from_the_signal() -> Non
         np.testing.assert_array_equal(shared[name], own[name])
     with pytest.raises(ValueError, match="shared STFT has shape"):
         separate(y, CFG.sr, stft=spec[:, :-1])
+
+
+@pytest.mark.filterwarnings("ignore:n_fft=2048 is too large")
+@pytest.mark.parametrize("seconds", [0.02, 0.1, 3.0])
+def test_inverse_stft_is_librosas_istft(seconds) -> None:
+    import librosa
+
+    from dancedata.compute.stems.offline import DEFAULTS as OFFLINE
+    from dancedata.compute.stems.offline import InverseSTFT, stem_masks
+
+    y = synth_dance_music(97.0, 3.0, sr=CFG.sr, seed=2)[: int(seconds * CFG.sr) + 77]
+    spec = librosa.stft(y, n_fft=2048, hop_length=512)
+    inverse = InverseSTFT(2048, 512, y.shape[0], spec.shape[1])
+    for mask in stem_masks(np.abs(spec), CFG.sr, **OFFLINE).values():
+        masked = spec * mask
+        want = librosa.istft(masked, n_fft=2048, hop_length=512, length=y.shape[0])
+        got = inverse(masked)
+        assert got.dtype == want.dtype == np.float32
+        np.testing.assert_array_equal(got, want)
+    double = spec.astype(np.complex128)
+    want = librosa.istft(double, n_fft=2048, hop_length=512, length=y.shape[0])
+    np.testing.assert_array_equal(inverse(double), want)
+    with pytest.raises(ValueError, match="does not fit"):
+        inverse(spec[:-1])

@@ -53,9 +53,9 @@ def median_filter_axis(values: np.ndarray, size: int, axis: int) -> np.ndarray:
     Equal to ``scipy.ndimage.median_filter`` with ``size`` along ``axis``, 1 along the other axis
     and ``mode="reflect"`` (a median selects one of the values, so the results are identical),
     and several times faster than SciPy's 1-d running-order filter on every line: the lines are
-    laid side by side with ``size // 2`` mirrored values at both ends, and each output row is the
-    median network of :func:`dancedata.compute.jit_kernels.median_network` applied to ``size``
-    padded rows, all lines at once (min/max, vectorised). Falls back to SciPy for even sizes,
+    laid side by side with ``size // 2`` mirrored values at both ends, and the output rows come
+    from selection networks over the padded rows, all lines at once (min/max, vectorised;
+    :func:`dancedata.compute.jit_kernels.window_median`). Falls back to SciPy for even sizes,
     non-float data or lines shorter than ``size``.
     """
     import scipy.ndimage
@@ -73,20 +73,23 @@ def median_filter_axis(values: np.ndarray, size: int, axis: int) -> np.ndarray:
     positions = np.moveaxis(data, axis, 0)  # (positions along axis, lines)
     padded = np.pad(positions, ((half, half), (0, 0)), mode="symmetric")  # = scipy "reflect"
     out = np.empty(positions.shape, dtype=data.dtype)
-    window_median(padded, _network(int(size)), int(size), out)
+    k = int(size)
+    window_median(padded, _network(k), _network(k - 1, (k // 2 - 1, k // 2)), k, out)
     return np.moveaxis(out, 0, axis)
 
 
-_NETWORKS: dict[int, np.ndarray] = {}
+_NETWORKS: dict[tuple[int, tuple[int, ...]], np.ndarray] = {}
 
 
-def _network(k: int) -> np.ndarray:
-    """:func:`dancedata.compute.jit_kernels.median_network` of ``k``, built once per process."""
-    from dancedata.compute.jit_kernels import median_network
+def _network(n: int, positions: tuple[int, ...] | None = None) -> np.ndarray:
+    """:func:`dancedata.compute.jit_kernels.selection_network` of ``n`` values for ranks
+    ``positions`` (default: the median), built once per process."""
+    from dancedata.compute.jit_kernels import selection_network
 
-    if k not in _NETWORKS:
-        _NETWORKS[k] = median_network(k)
-    return _NETWORKS[k]
+    key = (n, positions if positions is not None else (n // 2,))
+    if key not in _NETWORKS:
+        _NETWORKS[key] = selection_network(*key)
+    return _NETWORKS[key]
 
 
 def hpss_masks(mag: np.ndarray, kernel: int) -> tuple[np.ndarray, np.ndarray]:
@@ -269,9 +272,61 @@ def separate(
             raise ValueError(f"shared STFT has shape {stft.shape}, expected {expected}")
         spec = stft
     masks = stem_masks(np.abs(spec), sr, **params)
-    return {
-        name: librosa.istft(
-            spec * masks[name], hop_length=hop, n_fft=n_fft, length=mono.shape[-1]
-        ).astype(np.float32)
-        for name in STEM_NAMES
-    }
+    inverse = InverseSTFT(n_fft, hop, mono.shape[-1], spec.shape[-1])
+    return {name: inverse(spec * masks[name]).astype(np.float32) for name in STEM_NAMES}
+
+
+class InverseSTFT:
+    """``librosa.istft(S, n_fft=n_fft, hop_length=hop, length=length)`` (Hann, centred) of
+    spectra of ``frames`` frames, with the same bits, for several spectra of one shape.
+
+    For complex64 spectra the window's sum of squares is computed once, the inverse FFTs run
+    256 frames at a time (librosa: ~31, its 256 kB blocks) and the windowing and overlap-add
+    are one compiled pass (:func:`dancedata.compute.jit_kernels.overlap_add`) instead of a
+    float64 product of every block: 0.021 -> 0.011 CPU s per 30 s stem (measured). complex128
+    spectra go to librosa.istft.
+    """
+
+    _BLOCK = 256
+
+    def __init__(self, n_fft: int, hop: int, length: int, frames: int) -> None:
+        import librosa
+
+        self.n_fft, self.hop, self.length = int(n_fft), int(hop), int(length)
+        half = self.n_fft // 2
+        self.frames = min(int(frames), int(np.ceil((self.length + 2 * half) / self.hop)))
+        window = librosa.filters.get_window("hann", self.n_fft, fftbins=True)
+        self.window = np.ascontiguousarray(librosa.util.pad_center(window, size=self.n_fft))
+        norm = librosa.filters.window_sumsquare(
+            window="hann",
+            n_frames=self.frames,
+            win_length=self.n_fft,
+            n_fft=self.n_fft,
+            hop_length=self.hop,
+            dtype=np.float32,
+        )
+        self.norm = np.ascontiguousarray(librosa.util.fix_length(norm[half:], size=self.length))
+
+    def __call__(self, spectrum: np.ndarray) -> np.ndarray:
+        """The float32 signal of one complex64 spectrum (bins, frames)."""
+        import librosa
+
+        from dancedata.compute.jit_kernels import divide_where_above, overlap_add
+
+        spec = np.asarray(spectrum)
+        if spec.ndim != 2 or spec.shape[0] != 1 + self.n_fft // 2 or spec.shape[1] < self.frames:
+            raise ValueError(
+                f"spectrum of shape {spec.shape} does not fit a {self.n_fft}-point STFT of "
+                f"{self.frames} frames"
+            )
+        if spec.dtype != np.complex64:  # librosa's own path for double precision
+            return librosa.istft(spec, hop_length=self.hop, n_fft=self.n_fft, length=self.length)
+        irfft = librosa.get_fftlib().irfft
+        y = np.zeros(self.length, dtype=np.float32)
+        rows = spec.T  # (frames, bins): each frame's inverse FFT is one contiguous row
+        for first in range(0, self.frames, self._BLOCK):
+            stop = min(first + self._BLOCK, self.frames)
+            block = np.ascontiguousarray(irfft(rows[first:stop], n=self.n_fft, axis=-1))
+            overlap_add(y, block, self.window, first, self.hop, self.n_fft // 2)
+        divide_where_above(y, self.norm, float(np.finfo(np.float32).tiny))
+        return y
