@@ -22,7 +22,8 @@ Then **CPU seconds per track of the default set, before and after** the audio sp
 code at ``--before`` (default: the commit before it) is extracted with ``git archive`` into a
 temporary folder and run side by side with this checkout, each in its own fresh process,
 alternately (``--rounds``), on the same track: the song above as a file, its first ``--seconds``
-decoded. Each process reports
+decoded. Each process pins BLAS/OpenMP to one thread first, as featurize's worker processes
+do (``dancedata.exec.threads.pin_threads``), and reports
 
 * ``startup``: imports, numba compilation and a first 2 s track (what every worker process pays
   before its first real track);
@@ -152,6 +153,12 @@ def child(path: str, seconds: float, repeats: int) -> dict[str, object]:
     # featurize's step timings read time.perf_counter; in this process they read CPU time
     time.perf_counter = time.process_time
     import dancedata
+    from dancedata.exec.threads import pin_threads
+
+    # featurize runs every audio unit with one BLAS thread (worker processes pin their pools,
+    # in-process units run under ``single_threaded``); unpinned, OpenBLAS's second thread spins
+    # and bills CPU time that featurize does not pay (the mel products: ~0.15 CPU s a track)
+    pin_threads(1)
     from dancedata.compute.audio_features import AudioFeatureConfig
     from dancedata.featurize.audio_track import compute_track_features
     from dancedata.featurize.families.audio import default_families

@@ -1,5 +1,6 @@
 """The compiled audio kernels (:mod:`dancedata.compute.jit_kernels`) against the library code
-they stand in for, called directly: librosa.beat.beat_track, librosa.util.softmask, and the
+they stand in for, called directly: librosa.beat.beat_track, librosa.util.softmask, the median
+network against np.median, the running median against scipy.ndimage.median_filter, and the
 per-bin median of gathered frames by np.partition. Each must give the very same values."""
 
 from __future__ import annotations
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 from dancedata.compute.audio_features import AudioFeatureConfig, beat_frames, onset_envelope
-from dancedata.compute.jit_kernels import neighbour_median
+from dancedata.compute.jit_kernels import median_network, neighbour_median, selection_network
 from dancedata.compute.stems.offline import repetition_background, softmask
 from dancedata.synth.music import synth_dance_music
 
@@ -75,10 +76,53 @@ def test_neighbour_median_is_the_partition_median_with_ties() -> None:
     frames = rng.integers(0, 4, size=(50, 33)).astype(np.float32)  # many ties
     nearest = rng.integers(0, 50, size=(20, 9))
     out = np.full_like(frames, np.nan)
-    neighbour_median(frames, nearest, out, 10)
+    neighbour_median(frames, nearest, out, 10, median_network(9))
     want = np.partition(frames[nearest], 4, axis=1)[:, 4, :]
     np.testing.assert_array_equal(out[10:30], want)
     assert np.isnan(out[:10]).all() and np.isnan(out[30:]).all()
+
+
+@pytest.mark.parametrize("k", [1, 3, 5, 9, 21, 31, 33, 41])
+def test_median_network_puts_the_median_in_the_middle(k) -> None:
+    rng = np.random.default_rng(k)
+    values = rng.standard_normal((k, 3000)).astype(np.float32)
+    values[:, :1000] = np.round(values[:, :1000])  # ties
+    want = np.median(values, axis=0)
+    pairs = median_network(k)
+    assert (pairs[:, 0] < pairs[:, 1]).all() and pairs.max(initial=0) < k
+    for a, b in pairs:
+        values[a], values[b] = np.minimum(values[a], values[b]), np.maximum(values[a], values[b])
+    np.testing.assert_array_equal(values[k // 2], want)
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+@pytest.mark.parametrize("axis", [0, 1])
+@pytest.mark.parametrize("size", [3, 21, 31])
+def test_median_filter_axis_is_scipys_median_filter(order, axis, size) -> None:
+    import scipy.ndimage
+
+    from dancedata.compute.stems.offline import median_filter_axis
+
+    rng = np.random.default_rng(size + axis)
+    mag = (rng.random((300, 333 + axis)) ** 3).astype(np.float32)  # odd and even line counts
+    mag[:, :20] = np.round(mag[:, :20] * 3)  # ties
+    mag = np.asarray(mag, order=order)
+    sizes = [1, 1]
+    sizes[axis] = size
+    want = scipy.ndimage.median_filter(mag, size=tuple(sizes), mode="reflect")
+    np.testing.assert_array_equal(median_filter_axis(mag, size, axis), want)
+
+
+@pytest.mark.parametrize("n", [2, 6, 30])
+def test_selection_network_selects_both_middle_ranks(n) -> None:
+    rng = np.random.default_rng(n)
+    values = np.round(rng.standard_normal((n, 2000)) * 2).astype(np.float32)
+    want = np.sort(values, axis=0)[n // 2 - 1 : n // 2 + 1]
+    for a, b in selection_network(n, (n // 2 - 1, n // 2)):
+        values[a], values[b] = np.minimum(values[a], values[b]), np.maximum(values[a], values[b])
+    np.testing.assert_array_equal(values[n // 2 - 1 : n // 2 + 1], want)
+    with pytest.raises(ValueError, match="cannot select"):
+        selection_network(n, (n,))
 
 
 def test_repetition_background_is_the_brute_force_median_of_the_nearest_frames() -> None:
@@ -106,3 +150,27 @@ def test_offline_stems_from_a_shared_stft_are_the_stems_from_the_signal() -> Non
         np.testing.assert_array_equal(shared[name], own[name])
     with pytest.raises(ValueError, match="shared STFT has shape"):
         separate(y, CFG.sr, stft=spec[:, :-1])
+
+
+@pytest.mark.filterwarnings("ignore:n_fft=2048 is too large")
+@pytest.mark.parametrize("seconds", [0.02, 0.1, 3.0])
+def test_inverse_stft_is_librosas_istft(seconds) -> None:
+    import librosa
+
+    from dancedata.compute.stems.offline import DEFAULTS as OFFLINE
+    from dancedata.compute.stems.offline import InverseSTFT, stem_masks
+
+    y = synth_dance_music(97.0, 3.0, sr=CFG.sr, seed=2)[: int(seconds * CFG.sr) + 77]
+    spec = librosa.stft(y, n_fft=2048, hop_length=512)
+    inverse = InverseSTFT(2048, 512, y.shape[0], spec.shape[1])
+    for mask in stem_masks(np.abs(spec), CFG.sr, **OFFLINE).values():
+        masked = spec * mask
+        want = librosa.istft(masked, n_fft=2048, hop_length=512, length=y.shape[0])
+        got = inverse(masked)
+        assert got.dtype == want.dtype == np.float32
+        np.testing.assert_array_equal(got, want)
+    double = spec.astype(np.complex128)
+    want = librosa.istft(double, n_fft=2048, hop_length=512, length=y.shape[0])
+    np.testing.assert_array_equal(inverse(double), want)
+    with pytest.raises(ValueError, match="does not fit"):
+        inverse(spec[:-1])

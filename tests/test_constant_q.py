@@ -82,3 +82,23 @@ def test_vibe_ace_cqt_equals_librosa(real_data):
     for _ in range(2):
         got = cqt_magnitude(y, SR, 512, n_bins=252, bins_per_octave=36, tuning=tuning)
         assert got.tobytes() == _librosa(y, SR, 512, 252, 36, tuning).tobytes()
+
+
+@pytest.mark.parametrize("resolution", [0.01, 0.0005])
+def test_tuning_from_the_pitch_band_is_librosas_estimate_tuning(resolution):
+    # a fine resolution makes the histogram's peak sensitive to every picked pitch
+    import librosa
+
+    rng = np.random.default_rng(9)
+    for seed in range(4):
+        mag = np.abs(librosa.stft(_synth(5.0, seed), n_fft=2048, hop_length=512))
+        for spectrum in (mag, mag * rng.random(mag.shape, dtype=np.float32)):
+            want = librosa.estimate_tuning(
+                S=spectrum, sr=SR, n_fft=2048, resolution=resolution, bins_per_octave=36
+            )
+            got = constant_q.estimate_tuning_from_magnitude(
+                spectrum, SR, 2048, bins_per_octave=36, resolution=resolution
+            )
+            assert got == want
+    with pytest.raises(ValueError, match="is not a 2048-point"):
+        constant_q.estimate_tuning_from_magnitude(mag[1:], SR, 2048, bins_per_octave=36)

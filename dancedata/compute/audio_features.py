@@ -111,10 +111,11 @@ def chroma_cens(
     """
     import librosa
 
-    from dancedata.compute.constant_q import cqt_magnitude
+    from dancedata.compute.constant_q import cqt_magnitude, estimate_tuning_from_magnitude
 
     if mag is not None and cfg.n_fft == 2048 and cfg.hop_length == 512:
-        tuning = librosa.estimate_tuning(S=mag, sr=cfg.sr, n_fft=cfg.n_fft, bins_per_octave=36)
+        # librosa.estimate_tuning(S=mag, ...)'s value, from the pitch band's bins only
+        tuning = estimate_tuning_from_magnitude(mag, cfg.sr, cfg.n_fft, bins_per_octave=36)
     else:  # what chroma_cens's CQT estimates when given no tuning
         tuning = librosa.estimate_tuning(y=y, sr=cfg.sr, bins_per_octave=36)
     # chroma_cens's own CQT (7 octaves of 36 bins from C1), with the filter banks kept between

@@ -154,3 +154,52 @@ def cqt_magnitude(
     )
     out /= np.sqrt(lengths)[:, np.newaxis]
     return np.abs(out)
+
+
+def estimate_tuning_from_magnitude(
+    mag: np.ndarray, sr: float, n_fft: int, bins_per_octave: int, resolution: float = 0.01
+) -> float:
+    """``librosa.estimate_tuning(S=mag, sr=sr, n_fft=n_fft, bins_per_octave=...)`` (piptrack's
+    defaults: 150-4000 Hz, threshold 0.1), the same value, on the bins of the pitch band only.
+
+    piptrack interpolates, differentiates and picks local maxima over every bin, then keeps
+    those from 150 Hz to 4 kHz (a quarter of them at sr 30720, n_fft 2048). Each of those steps
+    reads a bin's two neighbours, so the band plus one bin either side gives the band's values
+    exactly; only the per-frame maximum (the 0.1 threshold's reference) needs every bin. The
+    pitches and magnitudes of the picked bins are librosa's (its own interpolation kernel, the
+    same dtype promotions), and the median and histogram after them do not depend on order.
+    """
+    import librosa
+    from librosa.core.pitch import _parabolic_interpolation
+
+    spectrum = np.abs(np.asarray(mag))
+    if spectrum.ndim != 2 or spectrum.shape[0] != 1 + n_fft // 2:
+        raise ValueError(f"magnitude of shape {spectrum.shape} is not a {n_fft}-point |STFT|")
+    freqs = librosa.fft_frequencies(sr=sr, n_fft=n_fft)
+    in_band = np.flatnonzero((freqs >= 150.0) & (freqs < min(4000.0, float(sr) / 2)))
+    if in_band.size == 0 or in_band[0] < 1 or in_band[-1] > freqs.size - 2:
+        return float(
+            librosa.estimate_tuning(
+                S=mag, sr=sr, n_fft=n_fft, resolution=resolution, bins_per_octave=bins_per_octave
+            )
+        )
+    lo, hi = int(in_band[0]) - 1, int(in_band[-1]) + 2  # one neighbour each side
+    band = spectrum[lo:hi]
+    avg = np.gradient(band, axis=-2)
+    shift = _parabolic_interpolation(band, axis=-2)
+    dskew = 0.5 * avg * shift
+    ref_value = 0.1 * np.max(spectrum, axis=-2, keepdims=True)
+    peaks = librosa.util.localmax(band * (band > ref_value), axis=-2)
+    peaks[0] = peaks[-1] = False  # the neighbours are outside the band
+    rows, cols = np.nonzero(peaks)
+    pitch = np.asarray((rows + lo + shift[rows, cols]) * float(sr) / n_fft, dtype=spectrum.dtype)
+    level = (band[rows, cols] + dskew[rows, cols]).astype(spectrum.dtype)
+    keep = pitch > 0
+    threshold = np.median(level[keep]) if keep.any() else 0.0
+    return float(
+        librosa.pitch_tuning(
+            pitch[(level >= threshold) & keep],
+            resolution=resolution,
+            bins_per_octave=bins_per_octave,
+        )
+    )

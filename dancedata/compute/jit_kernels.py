@@ -15,37 +15,152 @@ import numba
 import numpy as np
 
 
+def median_network(k: int) -> np.ndarray:
+    """Comparators (c, 2) int64 of a network that puts the median of ``k`` values at position
+    ``k // 2`` (:func:`selection_network`; 152 comparators for k = 31, 91 for k = 21)."""
+    return selection_network(k, (k // 2,))
+
+
+def selection_network(n: int, positions: tuple[int, ...]) -> np.ndarray:
+    """Comparators (c, 2) int64 that put the values of ranks ``positions`` among ``n`` values
+    at those positions: Batcher's odd-even merge sort for the next power of two, without the
+    comparators that touch positions ≥ ``n`` (those would hold +inf, which no comparator moves)
+    and without those the wanted positions do not depend on. Each comparator (a, b), a < b,
+    puts the smaller value at a and the larger at b; min and max select inputs, so each wanted
+    position holds the very value a sort would put there."""
+    if n < 1 or not positions or min(positions) < 0 or max(positions) >= n:
+        raise ValueError(f"cannot select ranks {positions} of {n} values")
+    size = 1
+    while size < n:
+        size *= 2
+    pairs = []
+    p = 1
+    while p < size:
+        step = p
+        while step >= 1:
+            for j in range(step % p, size - step, 2 * step):
+                for i in range(min(step, size - j - step)):
+                    if (i + j) // (2 * p) == (i + j + step) // (2 * p) and i + j + step < n:
+                        pairs.append((i + j, i + j + step))
+            step //= 2
+        p *= 2
+    needed, kept = set(positions), []
+    for a, b in reversed(pairs):
+        if a in needed or b in needed:
+            kept.append((a, b))
+            needed.update((a, b))
+    return np.array(kept[::-1], dtype=np.int64).reshape(-1, 2)
+
+
 @numba.njit(cache=True, nogil=True)
-def neighbour_median(frames: np.ndarray, nearest: np.ndarray, out: np.ndarray, start: int) -> None:
+def _apply_network(buf: np.ndarray, pairs: np.ndarray, width: int) -> None:
+    """The comparators ``pairs`` on the rows of ``buf``, column by column of ``buf[:, :width]``
+    (vectorised across the columns: min and max, no branch)."""
+    for c in range(pairs.shape[0]):
+        low = buf[pairs[c, 0]]
+        high = buf[pairs[c, 1]]
+        for j in range(width):
+            x = low[j]
+            y = high[j]
+            low[j] = min(x, y)
+            high[j] = max(x, y)
+
+
+_CHUNK = 256  # columns per pass: k rows of 256 float32 stay in the L1 cache
+
+
+@numba.njit(cache=True, nogil=True)
+def window_median(
+    padded: np.ndarray, pairs: np.ndarray, shared: np.ndarray, k: int, out: np.ndarray
+) -> None:
+    """``out[i, c]`` = median of ``padded[i : i + k, c]``: a running median down the rows, all
+    columns at once (k odd, k = 2h + 1 ≥ 3).
+
+    Two neighbouring windows share 2h rows; with those rows' values of ranks h − 1 and h
+    (``shared`` = :func:`selection_network` of (2h, (h − 1, h))), each window's median is its
+    own extra value clamped between them, so one network serves two outputs. A last odd row
+    takes the full median network ``pairs`` (:func:`median_network` of k). Every output is one
+    of its window's values, the one a sort would put in the middle.
+    """
+    rows, cols = out.shape
+    buf = np.empty((k, _CHUNK), dtype=padded.dtype)
+    half = k // 2
+    for c0 in range(0, cols, _CHUNK):
+        width = min(_CHUNK, cols - c0)
+        for i in range(0, rows - 1, 2):
+            for r in range(k - 1):
+                buf[r, :width] = padded[i + 1 + r, c0 : c0 + width]
+            _apply_network(buf, shared, width)
+            low = buf[half - 1]
+            high = buf[half]
+            first = padded[i, c0 : c0 + width]
+            second = padded[i + k, c0 : c0 + width]
+            for j in range(width):
+                out[i, c0 + j] = min(max(first[j], low[j]), high[j])
+                out[i + 1, c0 + j] = min(max(second[j], low[j]), high[j])
+        if rows % 2:
+            i = rows - 1
+            for r in range(k):
+                buf[r, :width] = padded[i + r, c0 : c0 + width]
+            _apply_network(buf, pairs, width)
+            out[i, c0 : c0 + width] = buf[half, :width]
+
+
+@numba.njit(cache=True, nogil=True)
+def neighbour_median(
+    frames: np.ndarray, nearest: np.ndarray, out: np.ndarray, start: int, pairs: np.ndarray
+) -> None:
     """``out[start + j, b]`` = median over i of ``frames[nearest[j, i], b]``.
 
     ``frames`` is (frames, bins), ``nearest`` (rows, k) frame indices with k odd, ``out``
-    (frames, bins). The median of an odd count k is the value of rank k // 2 when equal values
-    are ranked by their position (value i is above value m when x_m < x_i, or x_m = x_i and
-    m < i): the very value ``np.partition(..., k // 2)`` picks. Ranks are counted, k·(k − 1)
-    comparisons per bin without a branch, which vectorise across the bins (a selection's
-    data-dependent branches do not).
+    (frames, bins), ``pairs`` :func:`median_network` of k. The k gathered rows go through the
+    median network, all bins at once: the very value ``np.partition(..., k // 2)`` picks.
     """
     rows, k = nearest.shape
     bins = frames.shape[1]
     mid = k // 2
-    rank = np.empty(bins, dtype=np.int32)
+    buf = np.empty((k, _CHUNK), dtype=frames.dtype)
     for j in range(rows):
         target = out[start + j]
-        for i in range(k):
-            candidate = frames[nearest[j, i]]
-            rank[:] = 0
-            for m in range(i):
-                other = frames[nearest[j, m]]
-                for b in range(bins):
-                    rank[b] += other[b] <= candidate[b]
-            for m in range(i + 1, k):
-                other = frames[nearest[j, m]]
-                for b in range(bins):
-                    rank[b] += other[b] < candidate[b]
-            for b in range(bins):
-                if rank[b] == mid:
-                    target[b] = candidate[b]
+        for c0 in range(0, bins, _CHUNK):
+            width = min(_CHUNK, bins - c0)
+            for r in range(k):
+                buf[r, :width] = frames[nearest[j, r], c0 : c0 + width]
+            _apply_network(buf, pairs, width)
+            target[c0 : c0 + width] = buf[mid, :width]
+
+
+@numba.njit(cache=True, nogil=True)
+def overlap_add(
+    y: np.ndarray, frames: np.ndarray, window: np.ndarray, first: int, hop: int, offset: int
+) -> None:
+    """Windowed overlap-add of inverse-FFT frames into ``y``, as ``librosa.istft`` adds them.
+
+    ``frames`` (count, n_fft) float32 are frames ``first``, ``first + 1``, ... of the STFT;
+    frame f starts at sample f·hop − ``offset`` of ``y`` (``offset`` = n_fft // 2 for a centred
+    STFT), samples outside ``y`` are dropped. Each sample takes window[i]·frame[i] in float64
+    (librosa multiplies the float32 frames by its float64 window) and is added to ``y``'s
+    float32 value in float64, rounded back to float32, frame after frame: librosa's operations
+    in librosa's order, so the same bits.
+    """
+    count, n_fft = frames.shape
+    length = y.shape[0]
+    for b in range(count):
+        start = (first + b) * hop - offset
+        lo = max(0, -start)
+        hi = min(n_fft, length - start)
+        for i in range(lo, hi):
+            product = window[i] * np.float64(frames[b, i])
+            y[start + i] = np.float32(np.float64(y[start + i]) + product)
+
+
+@numba.njit(cache=True, nogil=True)
+def divide_where_above(y: np.ndarray, norm: np.ndarray, tiny: float) -> None:
+    """``y[i] /= norm[i]`` where ``norm[i] > tiny``, in ``y``'s dtype (librosa.istft's last
+    step, dividing by the window's sum of squares)."""
+    for i in range(y.shape[0]):
+        if norm[i] > tiny:
+            y[i] = y[i] / norm[i]
 
 
 # -- beat tracking (the dynamic program of Ellis 2007, as librosa.beat.beat_track runs it) -----

@@ -52,13 +52,15 @@ def median_filter_axis(values: np.ndarray, size: int, axis: int) -> np.ndarray:
 
     Equal to ``scipy.ndimage.median_filter`` with ``size`` along ``axis``, 1 along the other axis
     and ``mode="reflect"`` (a median selects one of the values, so the results are identical),
-    but about 10x faster: SciPy's N-d rank filter sorts every window, while its 1-d filter keeps a
-    running order (O(log size) per step). The lines along ``axis`` are laid end to end, each with
-    ``size // 2`` mirrored values on both sides, and filtered as one 1-d signal; no window crosses
-    from one line into the next. Falls back to the N-d filter for even sizes or lines shorter than
-    ``size``.
+    and several times faster than SciPy's 1-d running-order filter on every line: the lines are
+    laid side by side with ``size // 2`` mirrored values at both ends, and the output rows come
+    from selection networks over the padded rows, all lines at once (min/max, vectorised;
+    :func:`dancedata.compute.jit_kernels.window_median`). Falls back to SciPy for even sizes,
+    non-float data or lines shorter than ``size``.
     """
     import scipy.ndimage
+
+    from dancedata.compute.jit_kernels import window_median
 
     data = np.asarray(values)
     if data.ndim != 2:
@@ -68,11 +70,26 @@ def median_filter_axis(values: np.ndarray, size: int, axis: int) -> np.ndarray:
     if size % 2 == 0 or size < 3 or data.shape[axis] < size or data.dtype.kind != "f":
         return scipy.ndimage.median_filter(data, size=tuple(sizes), mode="reflect")
     half = int(size) // 2
-    lines = np.moveaxis(data, axis, -1)
-    padded = np.pad(lines, ((0, 0), (half, half)), mode="symmetric")  # = scipy "reflect"
-    flat = scipy.ndimage.median_filter(padded.ravel(), size=int(size), mode="reflect")
-    out = flat.reshape(padded.shape)[:, half:-half]
-    return np.ascontiguousarray(np.moveaxis(out, -1, axis))
+    positions = np.moveaxis(data, axis, 0)  # (positions along axis, lines)
+    padded = np.pad(positions, ((half, half), (0, 0)), mode="symmetric")  # = scipy "reflect"
+    out = np.empty(positions.shape, dtype=data.dtype)
+    k = int(size)
+    window_median(padded, _network(k), _network(k - 1, (k // 2 - 1, k // 2)), k, out)
+    return np.moveaxis(out, 0, axis)
+
+
+_NETWORKS: dict[tuple[int, tuple[int, ...]], np.ndarray] = {}
+
+
+def _network(n: int, positions: tuple[int, ...] | None = None) -> np.ndarray:
+    """:func:`dancedata.compute.jit_kernels.selection_network` of ``n`` values for ranks
+    ``positions`` (default: the median), built once per process."""
+    from dancedata.compute.jit_kernels import selection_network
+
+    key = (n, positions if positions is not None else (n // 2,))
+    if key not in _NETWORKS:
+        _NETWORKS[key] = selection_network(*key)
+    return _NETWORKS[key]
 
 
 def hpss_masks(mag: np.ndarray, kernel: int) -> tuple[np.ndarray, np.ndarray]:
@@ -128,7 +145,7 @@ def repetition_background(
     k = 2·sqrt(frames) neighbours (about 80 for a 30 s song at 60 fps); 21 gives the same kind of
     background at a quarter of the cost. Computed one block of ``block`` frames at a time, with
     one similarity matrix product and a partial sort per block, so memory stays bounded
-    (block × frames similarities); the medians are a compiled selection
+    (block × frames similarities); the medians are a compiled median network
     (:func:`dancedata.compute.jit_kernels.neighbour_median`), which picks the very values a
     sort would. When no frame is far enough away, the spectrogram is its own background.
     """
@@ -146,6 +163,7 @@ def repetition_background(
     unit_rows = np.ascontiguousarray(unit.T)
     frames = np.ascontiguousarray(values.T)  # (frames, bins): each neighbour is one row
     out = np.empty_like(frames)
+    pairs = _network(k)
     with single_thread_blas():
         for start in range(0, n, block):
             stop = min(start + block, n)
@@ -155,7 +173,7 @@ def repetition_background(
                 similarity[row, max(0, frame - width + 1) : frame + width] = -np.inf
             nearest = np.argpartition(-similarity, k - 1, axis=1)[:, :k]
             # the k neighbours' median per bin, compiled: no (block, k, bins) copy to sort
-            neighbour_median(frames, nearest, out, start)
+            neighbour_median(frames, nearest, out, start, pairs)
     return np.ascontiguousarray(out.T)
 
 
@@ -254,9 +272,61 @@ def separate(
             raise ValueError(f"shared STFT has shape {stft.shape}, expected {expected}")
         spec = stft
     masks = stem_masks(np.abs(spec), sr, **params)
-    return {
-        name: librosa.istft(
-            spec * masks[name], hop_length=hop, n_fft=n_fft, length=mono.shape[-1]
-        ).astype(np.float32)
-        for name in STEM_NAMES
-    }
+    inverse = InverseSTFT(n_fft, hop, mono.shape[-1], spec.shape[-1])
+    return {name: inverse(spec * masks[name]).astype(np.float32) for name in STEM_NAMES}
+
+
+class InverseSTFT:
+    """``librosa.istft(S, n_fft=n_fft, hop_length=hop, length=length)`` (Hann, centred) of
+    spectra of ``frames`` frames, with the same bits, for several spectra of one shape.
+
+    For complex64 spectra the window's sum of squares is computed once, the inverse FFTs run
+    256 frames at a time (librosa: ~31, its 256 kB blocks) and the windowing and overlap-add
+    are one compiled pass (:func:`dancedata.compute.jit_kernels.overlap_add`) instead of a
+    float64 product of every block: 0.021 -> 0.011 CPU s per 30 s stem (measured). complex128
+    spectra go to librosa.istft.
+    """
+
+    _BLOCK = 256
+
+    def __init__(self, n_fft: int, hop: int, length: int, frames: int) -> None:
+        import librosa
+
+        self.n_fft, self.hop, self.length = int(n_fft), int(hop), int(length)
+        half = self.n_fft // 2
+        self.frames = min(int(frames), int(np.ceil((self.length + 2 * half) / self.hop)))
+        window = librosa.filters.get_window("hann", self.n_fft, fftbins=True)
+        self.window = np.ascontiguousarray(librosa.util.pad_center(window, size=self.n_fft))
+        norm = librosa.filters.window_sumsquare(
+            window="hann",
+            n_frames=self.frames,
+            win_length=self.n_fft,
+            n_fft=self.n_fft,
+            hop_length=self.hop,
+            dtype=np.float32,
+        )
+        self.norm = np.ascontiguousarray(librosa.util.fix_length(norm[half:], size=self.length))
+
+    def __call__(self, spectrum: np.ndarray) -> np.ndarray:
+        """The float32 signal of one complex64 spectrum (bins, frames)."""
+        import librosa
+
+        from dancedata.compute.jit_kernels import divide_where_above, overlap_add
+
+        spec = np.asarray(spectrum)
+        if spec.ndim != 2 or spec.shape[0] != 1 + self.n_fft // 2 or spec.shape[1] < self.frames:
+            raise ValueError(
+                f"spectrum of shape {spec.shape} does not fit a {self.n_fft}-point STFT of "
+                f"{self.frames} frames"
+            )
+        if spec.dtype != np.complex64:  # librosa's own path for double precision
+            return librosa.istft(spec, hop_length=self.hop, n_fft=self.n_fft, length=self.length)
+        irfft = librosa.get_fftlib().irfft
+        y = np.zeros(self.length, dtype=np.float32)
+        rows = spec.T  # (frames, bins): each frame's inverse FFT is one contiguous row
+        for first in range(0, self.frames, self._BLOCK):
+            stop = min(first + self._BLOCK, self.frames)
+            block = np.ascontiguousarray(irfft(rows[first:stop], n=self.n_fft, axis=-1))
+            overlap_add(y, block, self.window, first, self.hop, self.n_fft // 2)
+        divide_where_above(y, self.norm, float(np.finfo(np.float32).tiny))
+        return y
