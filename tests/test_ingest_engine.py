@@ -204,3 +204,24 @@ def test_the_sequence_row_says_how_music_covers_the_motion() -> None:
     alone = sequence_row(record, None)
     assert alone["music_missing"] and alone["audio_frames"] == 0 and alone["bpm"] is None
     assert alone["bpm_estimated"] is None  # no tempo, nothing estimated
+
+
+def test_each_source_folders_options_are_its_command() -> None:
+    """``cli/ingest.py`` builds ``dancedata ingest <name>`` from the folder's ``Options``: one
+    parameter per field, in field order, with the field's default, then --quiet and --json."""
+    from dataclasses import MISSING, fields
+
+    from dancedata.cli.main import build_command
+
+    from dancedata.ingest.options import source_options
+
+    commands = build_command().commands["ingest"].commands
+    found = source_options()
+    assert sorted(found) == sorted(commands) == ["aist", "bvh", "generated", "music", "video"]
+    for name, options in found.items():
+        params = {p.name: p for p in commands[name].params}
+        assert list(params) == [f.name for f in fields(options)] + ["quiet", "as_json"], name
+        for item in fields(options):
+            default = params[item.name].default
+            expected = None if item.default is MISSING else item.default
+            assert getattr(default, "value", default) == expected, (name, item.name)
