@@ -1,110 +1,82 @@
-"""``dancedata ingest aist``: AIST++ annotations into a new store version."""
+"""``dancedata ingest <source>``: one command per ingest source, built from its options dataclass.
+
+Every source folder ``dancedata/ingest/<name>/`` declares its command in ``Options``
+(:mod:`dancedata.ingest.options`): each field one argument or option (name, type, default,
+help, flags, choices, lower bound), the docstring the help. This module turns each into a Typer
+command, as :mod:`dancedata.cli.audio_options` does for the feature families' settings, so a
+new source or option needs no edit here.
+"""
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import Annotated
+import inspect
+from dataclasses import MISSING, Field, fields
+from enum import Enum, StrEnum
+from typing import Annotated, Any, get_type_hints
 
 import typer
 from dancedata.cli.apps import ingest_app
-from dancedata.cli.common import (
-    Dask,
-    Json,
-    OnError,
-    OnErrorOpt,
-    Quiet,
-    Wait,
-    Workers,
-    report,
-    setup,
-    split_csv,
-)
+from dancedata.cli.common import Dask, Json, OnErrorOpt, Quiet, Wait, Workers, report, setup
+
+from dancedata.ingest.options import IngestOptions, source_options
+
+_COMMON: dict[str, Any] = {"workers": Workers, "dask": Dask, "on_error": OnErrorOpt, "wait": Wait}
 
 
-@ingest_app.command("aist")
-def ingest_aist_cmd(
-    raw: Annotated[Path, typer.Argument(help="AIST++ annotation root (motions/, splits/, ...).")],
-    store: Annotated[
-        str,
-        typer.Option("--store", "-s", help="Store directory or fsspec URL (created if new)."),
-    ],
-    music_dir: Annotated[
-        Path | None,
-        typer.Option(help="Folder of <music_id>.wav/.mp3/.flac (default: RAW/wav or RAW/music)."),
-    ] = None,
-    allow_missing_music: Annotated[
-        bool, typer.Option(help="Keep sequences whose music is missing and record the gap.")
-    ] = False,
-    genres: Annotated[
-        str | None, typer.Option(help="Only these genres, comma-separated (e.g. gBR,gPO).")
-    ] = None,
-    exclude_genres: Annotated[
-        str | None, typer.Option(help="Drop these genres (the keyframe study drops gJB).")
-    ] = None,
-    situations: Annotated[
-        str | None, typer.Option(help="Only these situations: sBM (basic), sFM (advanced).")
-    ] = None,
-    annotations: Annotated[
-        str | None,
-        typer.Option(
-            help="Annotation kinds to store, comma-separated: keypoints3d, keypoints2d, cameras "
-            "(default: every kind on disk; '' for none). Sequences lacking a kind get NaN rows."
-        ),
-    ] = None,
-    fps: Annotated[
-        str | None,
-        typer.Option(
-            "--fps",
-            metavar="FPS",
-            help="Store the motion at this frame rate (AIST++ is 60 fps): the 60 fps ingest, "
-            "then `dancedata resample --fps FPS` as the next version (SLERP rotations, linear "
-            "positions; see its --help).",
-        ),
-    ] = None,
-    on_error: OnErrorOpt = OnError.fail,
-    workers: Workers = 1,
-    dask: Dask = None,
-    wait: Wait = False,
-    quiet: Quiet = False,
-    as_json: Json = False,
-) -> None:
-    """Read AIST++ motion and keypoint pickles (safely: nothing in them is executed), cameras,
-    splits (crossmodal, pose), ignore list and music into a new store version. Lengths are
-    stored in metres: translation = smpl_trans / smpl_scaling, keypoints3d and camera
-    translation cm / 100.
-
-    Example:
-      dancedata ingest aist data/raw/aist-demo --store data/stores/aist-20fps --fps 20
-    """
-    setup(quiet)
-    from dancedata.featurize.resample_store import check_fps
-    from dancedata.ingest.aist.inputs import AIST_FPS
-
-    target_fps = None if fps is None else check_fps(fps)
-    from dancedata.ingest.aist import AistIngestOptions
-    from dancedata.ingest.engine import ingest
-    from dancedata.ingest.registry import source_named
-
-    options = AistIngestOptions(
-        music_dir=music_dir,
-        allow_missing_music=allow_missing_music,
-        genres=split_csv(genres),
-        exclude_genres=split_csv(exclude_genres),
-        situations=split_csv(situations),
-        annotations=(split_csv(annotations) or []) if annotations is not None else None,
-        on_error=on_error.value,
-        wait_for_lock=wait,
-        workers=workers,
-        dask=dask,
+def _parameter(cls: type, item: Field[Any], hint: Any) -> inspect.Parameter:
+    """The Typer parameter of one options field (choices become an enum of their strings)."""
+    cli = item.metadata["cli"]
+    default = inspect.Parameter.empty if item.default is MISSING else item.default
+    if "common" in cli:
+        annotation = _COMMON[cli["common"]]
+        if cli["common"] == "on_error":
+            default = annotation.__origin__(default)
+    else:
+        kind = hint
+        if cli.get("choices"):
+            choices = StrEnum(  # type: ignore[misc]
+                f"{cls.__module__.split('.')[-1].title()}{item.name.title()}",
+                {choice: choice for choice in cli["choices"]},
+            )
+            optional = default is None or type(None) in getattr(hint, "__args__", ())
+            kind = choices | None if optional else choices
+            default = default if default in (None, inspect.Parameter.empty) else choices(default)
+        if cli.get("argument"):
+            info = typer.Argument(help=cli["help"])
+        else:
+            extra = {k: cli[k] for k in ("min", "metavar") if cli.get(k) is not None}
+            info = typer.Option(*cli["flags"], help=cli["help"], **extra)
+        annotation = Annotated[kind, info]
+    return inspect.Parameter(
+        item.name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=annotation
     )
-    from dancedata.store.first_write import remove_store_if_left_empty
 
-    with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
-        result = ingest(store, source_named("aist")(raw, options))
-    if target_fps is not None and target_fps != AIST_FPS:
-        from dancedata.featurize.resample_store import resample_version
 
-        ingested = result.version
-        result = resample_version(store, target_fps, version=ingested)
-        result.counts = {**(result.counts or {}), "ingest_version": ingested}
-    report(result, "ingest aist", as_json, store=str(store))
+def _command(name: str, cls: type[IngestOptions]) -> Any:
+    """The ``ingest <name>`` command of an options class: its fields, then --quiet and --json."""
+
+    def command(**values: Any) -> None:
+        quiet, as_json = values.pop("quiet"), values.pop("as_json")
+        setup(quiet)
+        options = cls(**{k: v.value if isinstance(v, Enum) else v for k, v in values.items()})
+        result = options.run()
+        report(result, f"ingest {name}", as_json, store=str(options.store))
+        if not as_json:
+            for line in options.notes(result, quiet):
+                typer.echo(line, err=options.notes_err)
+
+    hints = get_type_hints(cls)
+    params = [_parameter(cls, item, hints[item.name]) for item in fields(cls)]  # type: ignore[arg-type]
+    keyword = inspect.Parameter.KEYWORD_ONLY
+    params += [
+        inspect.Parameter("quiet", keyword, default=False, annotation=Quiet),
+        inspect.Parameter("as_json", keyword, default=False, annotation=Json),
+    ]
+    command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+    command.__doc__ = cls.__doc__
+    command.__name__ = command.__qualname__ = f"ingest_{name}_cmd"
+    return command
+
+
+for _name, _options in source_options().items():
+    ingest_app.command(_name)(_command(_name, _options))

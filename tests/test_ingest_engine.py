@@ -9,6 +9,7 @@ throughout (zarr arrays, Parquet tables, validate).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,8 +21,11 @@ from dancedata.errors import InputError
 from dancedata.ingest.engine import ingest, sequence_row
 from dancedata.ingest.registry import register_source, source_named
 from dancedata.ingest.source import (
+    Finished,
     IngestPlan,
+    IngestTotals,
     InputChecksums,
+    MusicTable,
     ReadTask,
     SequenceRecord,
     SkipPolicy,
@@ -53,7 +57,7 @@ class PointsSource(Source):
     def __init__(self, folder: Path, on_error: str = "fail", workers: int = 1) -> None:
         self.folder, self.on_error, self.workers = folder, on_error, workers
 
-    def plan(self, checksums: InputChecksums, skips: SkipPolicy) -> IngestPlan:
+    def plan(self, store: Path, checksums: InputChecksums, skips: SkipPolicy) -> IngestPlan:
         files = sorted(self.folder.glob("*.npy"))
         self.checksums = checksums
         return IngestPlan(
@@ -61,13 +65,15 @@ class PointsSource(Source):
             fingerprint_keys=[f"{p.stem}|{checksums.sha(p)}" for p in files],
             inputs=None,
             tasks=[ReadTask(str(p), str(p)) for p in files],
-            read=read_points,
+            parse=read_points,
             task_kind="points",
+            arrays=[StoredArray("positions", (1, 3), np.float32, attrs={"units": "m"})],
             batch_size=2,
             workers=self.workers,
         )
 
-    def accept(self, task: ReadTask, value: Any) -> SequenceRecord:
+    def read(self, task: ReadTask, parsed: Callable[[], Any]) -> SequenceRecord:
+        value = parsed()
         return SequenceRecord(
             seq_id=Path(task.path).stem,
             source="points",
@@ -78,15 +84,16 @@ class PointsSource(Source):
             arrays={"positions": value[:, None, :]},  # one joint
         )
 
-    def array_specs(self, first: SequenceRecord) -> list[StoredArray]:
-        return [StoredArray("positions", (1, 3), np.float32, attrs={"units": "m"})]
-
-    def group_attrs(self) -> dict[str, dict[str, Any]]:
+    def finish(self, records: list[SequenceRecord], totals: IngestTotals) -> Finished:
         skeleton = {"name": "point", "joints": ["point"], "parents": [-1]}
-        return {"motion": {"fps": FPS, "up_axis": "y", "source": "points", "skeleton": skeleton}}
-
-    def tables(self, records, music) -> dict[str, list[dict[str, Any]]]:  # noqa: ANN001
-        return {"splits": []}
+        motion = {"fps": FPS, "up_axis": "y", "source": "points", "skeleton": skeleton}
+        music = MusicTable()
+        return Finished(
+            music=music,
+            counts=totals.counts(music),
+            tables={"splits": []},
+            attrs={"motion": motion},
+        )
 
 
 def write_points(folder: Path, lengths: list[int]) -> list[np.ndarray]:
@@ -197,3 +204,24 @@ def test_the_sequence_row_says_how_music_covers_the_motion() -> None:
     alone = sequence_row(record, None)
     assert alone["music_missing"] and alone["audio_frames"] == 0 and alone["bpm"] is None
     assert alone["bpm_estimated"] is None  # no tempo, nothing estimated
+
+
+def test_each_source_folders_options_are_its_command() -> None:
+    """``cli/ingest.py`` builds ``dancedata ingest <name>`` from the folder's ``Options``: one
+    parameter per field, in field order, with the field's default, then --quiet and --json."""
+    from dataclasses import MISSING, fields
+
+    from dancedata.cli.main import build_command
+
+    from dancedata.ingest.options import source_options
+
+    commands = build_command().commands["ingest"].commands
+    found = source_options()
+    assert sorted(found) == sorted(commands) == ["aist", "bvh", "generated", "music", "video"]
+    for name, options in found.items():
+        params = {p.name: p for p in commands[name].params}
+        assert list(params) == [f.name for f in fields(options)] + ["quiet", "as_json"], name
+        for item in fields(options):
+            default = params[item.name].default
+            expected = None if item.default is MISSING else item.default
+            assert getattr(default, "value", default) == expected, (name, item.name)

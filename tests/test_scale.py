@@ -17,7 +17,7 @@ import pytest
 
 import dancedata
 import dancedata.featurize.featurize as featurize_module
-import dancedata.ingest.aist as aist_module
+import dancedata.ingest.aist.source as aist_module
 from dancedata.featurize.featurize import FeaturizeOptions, featurize
 from dancedata.featurize.segment import SegmentOptions, segment
 from dancedata.featurize.tasks import plan_motion_tasks as plan_motion_units

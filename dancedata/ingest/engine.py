@@ -2,26 +2,27 @@
 
 ``ingest(store, source)`` does, for every source, in this order:
 
-1. ``source.plan(checksums, skips)``: inputs, their checksums and the read tasks;
+1. ``source.plan(store, checksums, skips)``: inputs, their checksums, the read tasks and the
+   arrays (a store the source cannot write is refused here);
 2. the fingerprint (command, config, the plan's lines, package version); a committed version
-   carrying it means nothing to do (asked before the lock when the source allows, and again
+   carrying it means nothing to do (asked before the lock when the plan allows, and again
    under it: see "No lost update" below);
-3. ``source.check_store``, the store lock (``create_store``), ``source.under_lock``
+3. the store lock (``create_store``), ``source.under_lock``
    (``--append``: the parent, more fingerprint lines), ``source.prepare`` (music headers,
    tempo; may drop tasks whose inputs it skipped);
 4. a resumable :class:`~dancedata.store.writer.VersionWriter` (its parent: the latest version
    now); the read tasks run on the executor (serial, process pool or Dask) as resumable batches
    (:mod:`dancedata.ingest.resumable_reads`): a killed run's finished batches are not read
    again;
-5. in input order, ``source.check_task(task)`` then ``source.accept(task, value)`` → a
-   :class:`SequenceRecord`; a DancedataError from either or from the read fails the run or,
-   with ``--on-error skip``, is recorded in the manifest's ``skipped`` list; the record's
-   arrays are appended to the version's frame-concatenated arrays (declared from the first
-   record by ``source.array_specs``), and its ``frame_start`` is the number of frames before
-   it;
-6. the tables: ``sequences`` (the source's kept rows, then :func:`sequence_row` of each record,
-   the one place a sequence row is built), ``music`` (``source.music_table``), then the
-   source's other tables (splits, cameras), and ``source.counts``; then the commit.
+5. ``source.open`` (a parent's frames and rows kept); in input order,
+   ``source.read(task, parsed)`` → a :class:`SequenceRecord`; a DancedataError from it or from
+   the parse fails the run or, with ``--on-error skip``, is recorded in the manifest's
+   ``skipped`` list; the record's arrays are appended to the version's frame-concatenated
+   arrays (the plan's ``arrays``, declared at the first record), and its ``frame_start`` is the
+   number of frames before it;
+6. ``source.finish`` → the tables: ``sequences`` (the kept rows, then :func:`sequence_row` of
+   each record, the one place a sequence row is built), ``music``, then the source's other
+   tables (splits, cameras), the group attrs and the counts; then the commit.
 
 Stored bytes depend only on the inputs and the settings, never on the number of workers.
 
@@ -177,9 +178,8 @@ def ingest(store: str | Path, source: Source) -> CommandResult:
     a "nothing to do" result when a committed version already holds it."""
     checksums = InputChecksums()
     skips = SkipPolicy(source.on_error)
-    plan = source.plan(checksums, skips)
-    source.check_store(store)
-    if source.fingerprint_known_before_lock():
+    plan = source.plan(store, checksums, skips)
+    if plan.fingerprint_before_lock:
         fp = fingerprint(source.command, plan.config, plan.fingerprint_keys, __version__)
         ingested = already_ingested(store, fp)  # (asked again under the lock)
         if ingested is not None:
@@ -229,13 +229,13 @@ def _write_version(
         version.reset_outputs()
         version.mark_prepared()
         arrays = FrameArrays(version)
-        source.open(version, arrays)
+        kept = source.open(version, arrays)
         kept_frames = arrays.frames
         reads = ResumableReads(
             version.build_area(),
             plan.task_kind,
             [task.item for task in tasks],
-            plan.read,
+            plan.parse,
             batch_size=plan.batch_size,
             executor=executor,
             desc=plan.read_desc,
@@ -245,40 +245,39 @@ def _write_version(
         in_order = progress(tasks, plan.sequences_desc, unit=plan.sequences_unit)
         for result, task in zip(reads, in_order, strict=True):
             try:
-                source.check_task(task)
-                record = source.accept(task, result.get())
+                record = source.read(task, result.get)
                 check_seq_id(record.seq_id, task.path)
             except DancedataError as exc:
                 skips.fail_or_skip(exc, task.path)
                 continue
             if not arrays.declared:
-                arrays.declare(source.array_specs(record))
+                arrays.declare(plan.arrays(record) if callable(plan.arrays) else plan.arrays)
             record.frame_start = arrays.frames
             arrays.append(record.arrays, record.n_frames)
             record.arrays = {}  # written: memory holds one sequence at a time
             records.append(record)
-        arrays.close(source.group_attrs())
         if not records:
             raise plan.empty_error
         for item in skips.skipped:
             version.skip(item["path"], item["error"])
-        music = source.music_table(records)
-        rows = source.kept_sequences() + [
-            sequence_row(r, music.by_key.get(r.music_key) if r.music_key else None) for r in records
-        ]
-        version.write_table("sequences", build_table("sequences", rows))
-        if music.rows or source.writes_empty_music_table:
-            version.write_table("music", build_table("music", music.rows))
-        for name, table in source.tables(records, music).items():
-            version.write_table(name, build_table(name, table))
         totals = IngestTotals(
             frames=arrays.frames,
             new_frames=arrays.frames - kept_frames,
-            sequences=len(rows),
-            music=len(music.rows),
+            sequences=len(kept) + len(records),
             skipped=len(version.skipped),
             read_counts=reads.counts(),
         )
-        counts = source.counts(records, totals)
+        finished = source.finish(records, totals)
+        arrays.close(finished.attrs)
+        music = finished.music
+        rows = kept + [
+            sequence_row(r, music.by_key.get(r.music_key) if r.music_key else None) for r in records
+        ]
+        version.write_table("sequences", build_table("sequences", rows))
+        if music.rows or music.write_empty:
+            version.write_table("music", build_table("music", music.rows))
+        for name, table in finished.tables.items():
+            version.write_table(name, build_table(name, table))
+        counts = finished.counts
         name = version.commit(counts=counts)
     return CommandResult(version=name, created=True, counts=counts, skipped=version.skipped)

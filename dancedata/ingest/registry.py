@@ -1,9 +1,10 @@
 """Ingest sources by name: ``@register_source("bvh")`` on a :class:`~dancedata.ingest.source.Source`
 subclass, :func:`source_named` to find one.
 
-A source named ``x`` lives in ``dancedata.ingest.x`` and is imported on first use, so the
-registry lists no module; sources outside the package register through the
-``dancedata.ingest_sources`` entry-point group (``name = "package.module:SourceClass"``).
+A source named ``x`` lives in ``dancedata.ingest.x.source`` (its folder's ``__init__`` holds only
+its command-line options) and is imported on first use, so the registry lists no module;
+sources outside the package register through the ``dancedata.ingest_sources`` entry-point group
+(``name = "package.module:SourceClass"``).
 """
 
 from __future__ import annotations
@@ -38,13 +39,13 @@ def register_source(name: str) -> Callable[[S], S]:
 
 
 def source_named(name: str) -> type[Source]:
-    """The source class registered as ``name``: importing ``dancedata.ingest.<name>`` or an
+    """The source class registered as ``name``: importing ``dancedata.ingest.<name>.source`` or an
     entry point of that name first when needed. InputError for an unknown name."""
     if name not in _SOURCES and name.isidentifier():
         try:
-            importlib.import_module(f"dancedata.ingest.{name}")
+            importlib.import_module(f"dancedata.ingest.{name}.source")
         except ModuleNotFoundError as exc:
-            if exc.name != f"dancedata.ingest.{name}":
+            if exc.name not in (f"dancedata.ingest.{name}", f"dancedata.ingest.{name}.source"):
                 raise
     if name not in _SOURCES:
         for point in entry_points(group=ENTRY_POINT_GROUP, name=name):

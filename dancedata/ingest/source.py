@@ -6,27 +6,28 @@ Everything else — checksums and the fingerprint, the store lock, ``--on-error`
 resumable reads, frame offsets, the ``sequences`` row, table writing and the commit — is the
 engine's (:func:`dancedata.ingest.engine.ingest`).
 
-How a source plugs in (see :class:`Source` for each hook's contract):
+How a source plugs in (see :class:`Source`): a folder ``dancedata/ingest/<name>/`` whose
+``source.py`` holds a :class:`Source` subclass decorated ``@register_source("<name>")``
+(:mod:`dancedata.ingest.registry`; its constructor takes the inputs and an options object and
+sets ``command``, "ingest <name>") and whose ``__init__.py`` holds the command-line ``Options``
+(:mod:`dancedata.ingest.options`: ``dancedata ingest <name>`` is built from it). The contract
+is three methods:
 
-1. Write ``dancedata/ingest/<name>.py`` with a :class:`Source` subclass decorated with
-   ``@register_source("<name>")`` (:mod:`dancedata.ingest.registry`). Its constructor takes
-   the source's inputs and an options object; it sets ``command`` ("ingest <name>").
-2. ``plan(checksums, skips)`` lists the inputs: one :class:`ReadTask` per sequence (picklable
-   items), a top-level ``read`` function that turns one item into whatever the source parsed
-   (run in worker processes, may raise :class:`~dancedata.errors.DancedataError`), the
-   fingerprint lines and the manifest's input list (``checksums`` hashes files once).
-3. ``accept(task, value)`` turns one read value into a :class:`SequenceRecord`: the sequence's
-   columns and its arrays, one row per frame (raise DancedataError to refuse it: the engine
-   skips or fails by ``--on-error``).
-4. ``array_specs(first)`` declares the stored arrays from the first accepted record;
-   ``music_table(records)`` and ``tables(records)`` give the music table and any other tables;
-   ``counts(records, totals)`` the manifest counts. Optional hooks: ``check_store`` (refuse a
-   store before the lock), ``under_lock`` (store state the fingerprint depends on, e.g.
-   ``--append``), ``prepare`` (input work done only when there is something to ingest, e.g.
-   music headers; may drop tasks), ``open`` (copy a parent's frames), ``check_task`` (refuse a
-   sequence before its read is used), ``group_attrs``, ``kept_sequences``.
-5. Add a CLI command that builds the options and calls
-   ``ingest(store, source_named("<name>")(inputs, options))``, and the source's tests.
+1. ``plan(store, checksums, skips)`` → :class:`IngestPlan`: one :class:`ReadTask` per sequence
+   (picklable items), a top-level ``parse`` function that turns one item into whatever the
+   source parsed (run in worker processes, may raise :class:`~dancedata.errors.DancedataError`),
+   the fingerprint lines, the manifest's input list (``checksums`` hashes files once) and the
+   stored arrays it declares (:class:`StoredArray`, or a function of the first record). A store
+   the source cannot write is refused here (raise InputError).
+2. ``read(task, parsed)`` → :class:`SequenceRecord`: one sequence's columns and arrays, one row
+   per frame, from ``parsed()`` (the parse result; raises the parse's error). Raise
+   DancedataError to refuse it: the engine skips or fails by ``--on-error``.
+3. ``finish(records, totals)`` → :class:`Finished`: the music table, the other tables, the
+   manifest counts and the group attrs.
+
+Optional, for work under the store lock: ``under_lock`` (store state the fingerprint depends
+on, e.g. ``--append``), ``prepare`` (input work done only when there is something to ingest,
+e.g. music headers; may drop tasks) and ``open`` (copy a parent's frames, keep its rows).
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ON_ERROR_CHOICES",
+    "Finished",
     "FrameArrayTarget",
     "IngestPlan",
     "IngestTotals",
@@ -114,9 +116,9 @@ class InputChecksums:
 
 @dataclass(frozen=True)
 class ReadTask:
-    """One sequence to read: ``item`` goes to the plan's ``read`` function (in a worker, so it
+    """One sequence to read: ``item`` goes to the plan's ``parse`` function (in a worker, so it
     must pickle: paths as strings, settings as frozen dataclasses); ``path`` names the input
-    in a skip record when the read or ``accept`` fails without naming a file."""
+    in a skip record when the parse or ``read`` fails without naming a file."""
 
     path: str
     item: Any
@@ -132,13 +134,18 @@ class IngestPlan:
         inputs: the manifest's input list (dicts with path, bytes, sha256); None: every file
             described through the engine's InputChecksums by the time the version opens.
         tasks: one per sequence, in store order.
-        read: top-level function ``item -> value`` (values: dataclasses, numpy arrays and JSON
+        parse: top-level function ``item -> value`` (values: dataclasses, numpy arrays and JSON
             scalars, saved between runs without pickle).
+        arrays: the frame arrays every record carries, or a function declaring them from the
+            first record read (a skeleton's joint count).
         task_kind: the resumable reads' name (build-area folder) and ``read_desc`` their
             progress label; ``batch_size``: tasks per resumable read batch (None: the
             engine's default).
         workers: processes reading (``dask``: a scheduler address instead). Not fingerprinted.
         create_store: take the lock creating the store when missing (False for ``--append``).
+        fingerprint_before_lock: the fingerprint needs no store state (no ``under_lock``
+            lines), so the engine may look for a committed version carrying it before waiting
+            for the lock.
         resumable: keep finished read batches across a killed run.
         empty_error: raised when every sequence was skipped.
         sequences_desc: progress label of the in-order packing.
@@ -148,8 +155,9 @@ class IngestPlan:
     fingerprint_keys: list[str]
     inputs: list[dict[str, Any]] | None
     tasks: list[ReadTask]
-    read: Callable[[Any], Any]
+    parse: Callable[[Any], Any]
     task_kind: str
+    arrays: Sequence[StoredArray] | Callable[[SequenceRecord], Sequence[StoredArray]] = ()
     read_desc: str = "read inputs"
     sequences_desc: str = "ingest sequences"
     sequences_unit: str = "seq"
@@ -158,6 +166,7 @@ class IngestPlan:
     dask: str | None = None
     wait_for_lock: bool = False
     create_store: bool = True
+    fingerprint_before_lock: bool = True
     resumable: bool = True
     empty_error: InputError = field(
         default_factory=lambda: InputError("every input was skipped; nothing to ingest")
@@ -227,10 +236,12 @@ class SequenceRecord:
 @dataclass
 class MusicTable:
     """The version's music table rows (frame ranges packed from 0, feature frames at the
-    motion rate) and, per music key of the records, its row."""
+    motion rate) and, per music key of the records, its row; ``write_empty``: write the table
+    even when it has no rows (AIST++ stores always have one)."""
 
     rows: list[dict[str, Any]] = field(default_factory=list)
     by_key: dict[str, dict[str, Any]] = field(default_factory=dict)
+    write_empty: bool = False
 
 
 @dataclass(frozen=True)
@@ -240,9 +251,30 @@ class IngestTotals:
     frames: int  # every frame in the version's arrays (kept ones too)
     new_frames: int
     sequences: int  # rows of the sequences table (kept ones too)
-    music: int
     skipped: int
     read_counts: dict[str, int]  # {"units": read batches, "resumed_units": finished earlier}
+
+    def counts(self, music: MusicTable) -> dict[str, Any]:
+        """The manifest counts every source starts from."""
+        return {
+            "sequences": self.sequences,
+            "frames": self.frames,
+            "music": len(music.rows),
+            "skipped": self.skipped,
+            **self.read_counts,
+        }
+
+
+@dataclass
+class Finished:
+    """What a source adds once every record is read: the music table, the tables besides
+    sequences and music (splits, cameras; by name, in write order), the manifest counts and the
+    group attrs written on the arrays' groups ({"motion": {...}})."""
+
+    music: MusicTable
+    counts: dict[str, Any]
+    tables: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    attrs: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
 class FrameArrayTarget:
@@ -265,7 +297,7 @@ class Source:
     """Base class of an ingest source (see the module docstring for how one plugs in).
 
     Required: ``name`` (set by :func:`~dancedata.ingest.registry.register_source`),
-    ``command``, ``on_error``, :meth:`plan`, :meth:`accept`, :meth:`array_specs`.
+    ``command``, ``on_error``, :meth:`plan`, :meth:`read`, :meth:`finish`.
     """
 
     name: str = ""
@@ -273,74 +305,36 @@ class Source:
     on_error: str = "fail"
     # The version this one is based on (``--append``: its parent), set by under_lock.
     based_on: str | None = None
-    # Write the music table even when it has no rows (AIST++ stores always have one).
-    writes_empty_music_table: bool = False
 
-    # -- before the version opens ----------------------------------------------------------
-    def plan(self, checksums: InputChecksums, skips: SkipPolicy) -> IngestPlan:
-        """List the inputs and tasks (no store access). Bad inputs found here go through
-        ``skips``."""
+    def plan(self, store: str | Path, checksums: InputChecksums, skips: SkipPolicy) -> IngestPlan:
+        """List the inputs, tasks and arrays; refuse a store this source cannot write (raise
+        InputError). Bad inputs found here go through ``skips``."""
         raise NotImplementedError
 
-    def check_store(self, store: str | Path) -> None:
-        """Refuse a store this source cannot write, before the lock (``--append`` needs an
-        existing one): raise InputError."""
+    def read(self, task: ReadTask, parsed: Callable[[], Any]) -> SequenceRecord:
+        """One sequence as a record, checked against the store (frame rate, skeleton, music):
+        ``parsed()`` is the plan's ``parse`` of ``task.item`` (raising its error), called once
+        any check that needs no parse (its music unreadable) has passed. Raise DancedataError
+        to refuse the sequence. Called in input order."""
+        raise NotImplementedError
 
+    def finish(self, records: list[SequenceRecord], totals: IngestTotals) -> Finished:
+        """The music table, other tables, counts and group attrs of the records read."""
+        raise NotImplementedError
+
+    # -- optional: under the store lock -----------------------------------------------------
     def under_lock(self, store: str | Path) -> list[str] | CommandResult:
         """Called once the store lock is held: extra fingerprint lines that depend on the
-        store (the version appended to), or a result when there is nothing to do."""
+        store (the version appended to; the plan's ``fingerprint_before_lock`` is then False),
+        or a result when there is nothing to do."""
         return []
-
-    def fingerprint_known_before_lock(self) -> bool:
-        """True when :meth:`under_lock` adds no fingerprint lines, so the engine may look for
-        a committed version with this fingerprint before waiting for the lock."""
-        return True
 
     def prepare(self, checksums: InputChecksums, skips: SkipPolicy) -> list[ReadTask] | None:
         """Input work needed only when there is something to ingest (music headers, tempo).
         Returns the tasks still to read when it dropped some (skipped inputs), else None."""
         return None
 
-    # -- writing ---------------------------------------------------------------------------
-    def open(self, version: VersionWriter, arrays: FrameArrayTarget) -> None:
-        """The version is open: declare arrays known before any record, copy kept frames."""
-
-    def kept_sequences(self) -> list[dict[str, Any]]:
-        """Rows of the sequences table kept from a parent version, before the new ones."""
+    def open(self, version: VersionWriter, arrays: FrameArrayTarget) -> list[dict[str, Any]]:
+        """The version is open: declare arrays known before any record, copy kept frames;
+        returns the sequences rows kept from a parent version, written before the new ones."""
         return []
-
-    def check_task(self, task: ReadTask) -> None:
-        """Refuse a sequence for a reason known before its read result is looked at (its
-        music unreadable): raise DancedataError. Called in input order, before :meth:`accept`."""
-
-    def accept(self, task: ReadTask, value: Any) -> SequenceRecord:
-        """One read value, checked against the store (frame rate, skeleton, music), as a
-        record; raise DancedataError to refuse it."""
-        raise NotImplementedError
-
-    def array_specs(self, first: SequenceRecord) -> list[StoredArray]:
-        """The arrays every record carries, declared from the first accepted record."""
-        raise NotImplementedError
-
-    def group_attrs(self) -> dict[str, dict[str, Any]]:
-        """Group attrs written when the arrays are closed ({"motion": {...}})."""
-        return {}
-
-    def music_table(self, records: list[SequenceRecord]) -> MusicTable:
-        return MusicTable()
-
-    def tables(
-        self, records: list[SequenceRecord], music: MusicTable
-    ) -> dict[str, list[dict[str, Any]]]:
-        """Tables besides sequences and music (splits, cameras), by name, in write order."""
-        return {}
-
-    def counts(self, records: list[SequenceRecord], totals: IngestTotals) -> dict[str, Any]:
-        """The manifest's counts."""
-        return {
-            "sequences": totals.sequences,
-            "frames": totals.frames,
-            "music": totals.music,
-            "skipped": totals.skipped,
-            **totals.read_counts,
-        }

@@ -1,288 +1,157 @@
-"""``dancedata ingest video``: video-derived poses, aligned to each video's clock, into a new
-store version.
-
-A source of the ingest engine (:mod:`dancedata.ingest.engine`, registered as "video"), which
-owns checksums and the fingerprint, the lock, ``--on-error``, the parallel and resumable reads,
-frame offsets, the sequences row, the tables and the commit. This module says what is specific
-to videos:
-
-* plan: which poses, CSV and music go with each video (:mod:`~dancedata.ingest.video.inputs`),
-  and the fingerprint line of each (a pose folder hashed as one input);
-* read, one task per video, in worker processes (``workers``): clock → poses → frame check →
-  track → fill gaps → resample (:mod:`~dancedata.ingest.video.poses`), and the video's own audio
-  track as its music (:mod:`~dancedata.ingest.video.read`); a ``--music`` file is described
-  once per run (:mod:`~dancedata.ingest.video.music`);
-* accept: music paired, every video checked against the first (frame rate, body model, CSV
-  joints: a setting problem, never skipped), table columns, arrays and counts
-  (:mod:`~dancedata.ingest.video.records`).
-
-One new version holds only these sequences (its parent is recorded, nothing is carried over).
-A bad input leaves the store exactly as it was; a killed run leaves the videos it finished
-reading in the version's build area, and the next run with the same inputs and settings reads
-only the others. The stored bytes do not depend on ``workers``.
-
-Stored arrays (docs/STORE.md, "Video-derived poses"):
-
-* ``motion/pose2d`` (F, J, 3) float32: x, y in pixels (origin top-left, y down) and the
-  detector's confidence; x, y NaN and confidence 0 where missing. J = 25 (BODY_25) or 18 (COCO).
-* ``motion/pose2d_mask`` (F, J) uint8: 0 missing, 1 detected, 2 gap-filled.
-* ``motion/positions`` (F, K, 3) float32 metres from ``--joints-csv``, NaN where missing, and
-  ``motion/positions_mask`` (F, K) uint8 with the same codes.
-"""
+"""The video-poses source: ``dancedata ingest video``'s options (:class:`Options`); the source
+is :mod:`dancedata.ingest.video.source`, whose names (``VideoSource``, ``ingest_video``,
+``VideoIngestOptions``) are importable from here too."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dancedata.errors import InputError
-from dancedata.ingest.engine import ingest
-from dancedata.ingest.registry import register_source
-from dancedata.ingest.source import (
-    IngestPlan,
-    IngestTotals,
-    InputChecksums,
-    MusicTable,
-    ReadTask,
-    SequenceRecord,
-    SkipPolicy,
-    Source,
-    StoredArray,
-)
-from dancedata.ingest.video.inputs import (
-    check_unique_stems,
-    find_video_inputs,
-    sequence_key,
-    sequence_sha256,
-)
-from dancedata.ingest.video.music import bpm_method
-from dancedata.ingest.video.poses import PoseSettings
-from dancedata.ingest.video.read import VideoRead, VideoReadItem, read_video
-from dancedata.ingest.video.records import (
-    VideoSequence,
-    check_consistent,
-    motion_attrs,
-    music_files,
-    music_rows,
-    pose_arrays,
-    sequence_of,
-    video_columns,
-    video_counts,
-)
-from dancedata.progress import progress
-from dancedata.store.command_result import CommandResult
-from dancedata.store.layout import warn_once
+from dancedata.ingest.options import IngestOptions, argument, common, option, source_exports
 
-__all__ = ["COMMAND", "VideoIngestOptions", "VideoSource", "ingest_video"]
+__getattr__ = source_exports(__name__)
 
-COMMAND = "ingest video"
-# Videos per resumable read task: one, so a killed run re-reads at most the videos in flight.
-READ_BATCH_VIDEOS = 1
+CSV_SKELETONS = ("body25", "coco18", "h36m17", "spin24", "hmr19")
 
 
-@dataclass
-class VideoIngestOptions:
-    """Every setting of a video ingest (all but ``wait_for_lock``, ``workers`` and ``dask``
-    are fingerprinted).
+@dataclass(kw_only=True)
+class Options(IngestOptions):
+    """Read OpenPose JSON and/or 3-d joint CSVs made from videos, follow one dancer, align the
+    poses to each video's clock (pose frame i at i / video fps) and resample them by timestamp
+    into a new store version: motion/pose2d (x, y px, confidence; NaN where missing) with
+    motion/pose2d_mask (0 missing, 1 detected, 2 gap-filled), motion/positions (metres).
+    Pose and video frame counts must agree unless --allow-drift. Without VIDEO, the pose files
+    are the clock: give --fps; pose frame i (from the file name) is at i / fps. Videos are read
+    on --workers processes (or --dask); a killed run, run again, reads only the videos it had
+    not finished."""
 
-    Attributes:
-        poses: ``--poses`` folder (see :mod:`dancedata.ingest.video.inputs` for the mapping).
-        joints_csv: ``--joints-csv`` file or folder of 3-d joints.
-        music: ``--music`` file or folder; None: each video's audio track.
-        no_music: store no music at all (ignore audio tracks).
-        bpm: tempo of the music in beats per minute; None: estimate it per track.
-        genre: genre label of every sequence.
-        up_axis: the up axis recorded in the motion attrs ("-y": image and camera frames).
-        settings: the per-video pipeline settings.
-        on_error: "fail" or "skip" (skip a bad video, or a malformed pose file as a missing
-            frame, and record it in the manifest).
-        workers: processes reading videos; dask: a Dask scheduler address or "local:N" instead
-            (neither is fingerprinted: the bytes do not depend on them).
-    """
+    store: Path = option(help="Store directory (created if new).", flags=("--store", "-s"))
+    videos: list[Path] | None = argument(
+        None,
+        help="Video files; each becomes one sequence named after its file stem. None: the "
+        "pose files alone, with --fps (sequences named after the OpenPose file prefix, "
+        "frames numbered from the file names).",
+    )
+    poses: Path | None = option(
+        None,
+        help="OpenPose --write_json output. Per video: DIR/<stem>/ if it exists, else the "
+        "files DIR/<stem>_<frame>_keypoints.json; with one video, also a folder of "
+        "*_keypoints.json with any prefix.",
+    )
+    joints_csv: Path | None = option(
+        None,
+        help="3-d joints from a pose lifter, instead of or with --poses: a CSV (one video) "
+        "or a folder of <stem>.csv. Header columns <joint>_x/_y/_z (BODY_25, COCO-18, "
+        "H36M-17, SPIN-24 or HMR-19 names take that skeleton), optional frame or time "
+        "column; stored in motion/positions.",
+    )
+    skeleton: str | None = option(
+        None,
+        choices=CSV_SKELETONS,
+        help="Joint names of a headerless --joints-csv (x, y, z per joint).",
+    )
+    frame_base: int = option(0, help="Number of the video's first frame in a CSV frame column.")
+    units: str = option(
+        "m", choices=("m", "cm", "mm"), help="Units of --joints-csv (stored in metres)."
+    )
+    person: int | None = option(
+        None,
+        help="Follow this person: an OpenPose person id (when run with --tracking), else a "
+        "tracklet number (0, 1, ... by first appearance, left to right). Default: the "
+        "largest person present in at least half as many frames as the most seen.",
+    )
+    select: str = option(
+        "area",
+        choices=("area", "frames"),
+        help="Default dancer: largest (area) or most often seen (frames).",
+    )
+    max_gap: int = option(
+        3, min=0, help="Interpolate joints missing for up to this many video frames (0: none)."
+    )
+    allow_drift: bool = option(
+        False,
+        help="Accept pose and video frame counts that differ: keep the frames both have and "
+        "record the drift.",
+    )
+    fps: float | None = option(
+        None,
+        help="Stored frame rate; poses are resampled by timestamp. Default: the video's. "
+        "Without a video: the rate the poses were taken at (required).",
+    )
+    frame_times: str = option(
+        "nominal",
+        choices=("nominal", "decoded"),
+        help="Time of video frame i: nominal i / fps, or decoded (the frame's presentation "
+        "time, for variable-frame-rate video; decodes the whole video).",
+    )
+    music: Path | None = option(
+        None,
+        help="Music file (shared by every video) or folder of <stem>.wav/.flac/.ogg/.mp3. "
+        "Default: the video's audio track, read with PyAV (the 'viz' extra). It starts with "
+        "the video.",
+    )
+    no_music: bool = option(False, help="Store no music (ignore audio tracks).")
+    bpm: float | None = option(
+        None,
+        help="Tempo of the music; default: estimated (librosa beat_track) and "
+        "recorded as bpm_estimated.",
+    )
+    genre: str | None = option(None, help="Genre label of every sequence.")
+    up_axis: str = option("-y", help="Up axis recorded in the motion attrs (image frames: -y).")
+    workers: int = common("workers", 1)
+    dask: str | None = common("dask", None)
+    on_error: str = common("on_error", "fail")
+    wait: bool = common("wait", False)
 
-    poses: Path | None = None
-    joints_csv: Path | None = None
-    music: Path | None = None
-    no_music: bool = False
-    bpm: float | None = None
-    genre: str | None = None
-    up_axis: str = "-y"
-    settings: PoseSettings = field(default_factory=PoseSettings)
-    on_error: str = "fail"
-    wait_for_lock: bool = False
-    workers: int = 1
-    dask: str | None = None
+    def run(self) -> Any:
+        from dancedata.ingest.options import ingest_into
+        from dancedata.ingest.video.poses import PoseSettings
+        from dancedata.ingest.video.source import VideoIngestOptions
 
-    def music_source(self) -> str:
-        if self.no_music:
-            return "none"
-        return "file" if self.music is not None else "video_audio"
+        options = VideoIngestOptions(
+            poses=self.poses,
+            joints_csv=self.joints_csv,
+            music=self.music,
+            no_music=self.no_music,
+            bpm=self.bpm,
+            genre=self.genre,
+            up_axis=self.up_axis,
+            settings=PoseSettings(
+                fps=self.fps,
+                person=self.person,
+                select=self.select,
+                max_gap=self.max_gap,
+                allow_drift=self.allow_drift,
+                units=self.units,
+                skeleton=self.skeleton,
+                frame_base=self.frame_base,
+                frame_times=self.frame_times,
+            ),
+            on_error=self.on_error,
+            wait_for_lock=self.wait,
+            workers=self.workers,
+            dask=self.dask,
+        )
+        return ingest_into(self.store, "video", self.videos or [], options)
 
-    def config(self) -> dict[str, Any]:
-        return {
-            "source": "video",
-            **self.settings.config(),
-            "inputs": {"poses": self.poses is not None, "joints_csv": self.joints_csv is not None},
-            "music": self.music_source(),
-            "audio_offset": 0,
-            "bpm": self.bpm,
-            "bpm_estimate": bpm_method() if self.bpm is None and not self.no_music else None,
-            "genre": self.genre,
-            "up_axis": self.up_axis,
-            "on_error": self.on_error,
-        }
-
-    def check(self) -> None:
-        if self.poses is None and self.joints_csv is None:
-            raise InputError("give the poses: --poses DIR (OpenPose JSON) and/or --joints-csv")
-        if self.no_music and self.music is not None:
-            raise InputError("--music and --no-music exclude each other")
-        if self.bpm is not None and not self.bpm > 0:
-            raise InputError(f"--bpm must be positive, not {self.bpm}")
-        if self.settings.fps is not None and not self.settings.fps > 0:
-            raise InputError(f"--fps must be positive, not {self.settings.fps}")
-        if self.settings.max_gap < 0:
-            raise InputError(f"--max-gap must be 0 or more, not {self.settings.max_gap}")
-        if self.workers < 1:
-            raise InputError(f"--workers must be at least 1, not {self.workers}")
-
-
-# ----------------------------------------------------------------------------- the source
-
-
-@register_source("video")
-class VideoSource(Source):
-    """Videos (or their pose files alone) with their poses and music, as engine records
-    (:mod:`dancedata.ingest.source`)."""
-
-    command = COMMAND
-
-    def __init__(self, videos: list[str | Path], options: VideoIngestOptions) -> None:
-        self.videos = [Path(v) for v in videos]
-        self.options = options
-        self.on_error = options.on_error
-
-    # -- before the version opens ----------------------------------------------------------
-    def plan(self, checksums: InputChecksums, skips: SkipPolicy) -> IngestPlan:
-        options = self.options
-        options.check()
-        if not self.videos:  # pose files only: no audio track, music only from --music
-            if options.settings.fps is None:
-                raise InputError(
-                    "no video, so the pose files carry no frame rate: give --fps (the video's "
-                    "frame rate the poses were estimated at)",
-                    options.poses or options.joints_csv,
+    def notes(self, result: Any, quiet: bool) -> list[str]:
+        """One stderr line per video worth a look: drift kept, identity switches, estimated
+        tempo."""
+        lines = []
+        for seq_id, rep in result.counts.get("videos", {}).items():
+            notes = []
+            if rep.get("drift_frames"):
+                notes.append(
+                    f"drift {rep['drift_frames']:+d} frames allowed, "
+                    f"{rep['video_frames_used']} video frames kept"
                 )
-            options = replace(options, no_music=options.no_music or options.music is None)
-            self.options = options
-        check_unique_stems(self.videos)
-        found = find_video_inputs(
-            self.videos, options.poses, options.joints_csv, options.music, skips
-        )
-        keys = [sequence_key(checksums, i) for i in progress(found, "checksums", unit="video")]
-        self.found, self.checksums, self.skips = found, checksums, skips
-        audio_track = not options.no_music and options.music is None
-        tasks = [
-            ReadTask(
-                str(inputs.video),
-                VideoReadItem(
-                    inputs=inputs,
-                    settings=options.settings,
-                    skip_bad_files=options.on_error == "skip",
-                    audio_track=audio_track,
-                    video_sha256=checksums.sha(inputs.video) if audio_track else None,
-                    bpm=options.bpm,
-                ),
-            )
-            for inputs in found
-        ]
-        self.first: VideoSequence | None = None
-        self.specs: list[StoredArray] = []
-        return IngestPlan(
-            config=options.config(),
-            fingerprint_keys=keys,
-            inputs=checksums.inputs(),  # every input is described by now
-            tasks=tasks,
-            read=read_video,
-            task_kind="videos",
-            read_desc="read videos",
-            sequences_desc="ingest videos",
-            sequences_unit="video",
-            batch_size=READ_BATCH_VIDEOS,
-            workers=options.workers,
-            dask=options.dask,
-            wait_for_lock=options.wait_for_lock,
-            empty_error=InputError("every video was skipped; nothing to ingest"),
-        )
-
-    def prepare(self, checksums: InputChecksums, skips: SkipPolicy) -> None:
-        """Describe each ``--music`` file once (a bad one fails or skips its videos when they
-        are accepted, in input order)."""
-        no_music = self.options.no_music
-        self.tracks = {} if no_music else music_files(self.found, self.options.bpm, checksums)
-
-    # -- records ---------------------------------------------------------------------------
-    def accept(self, task: ReadTask, value: Any) -> SequenceRecord:
-        item: VideoReadItem = task.item
-        read: VideoRead = value
-        seq = sequence_of(item.inputs, read, self.tracks)
-        if self.first is None:
-            self.specs = pose_arrays(seq.poses)
-            self.first = seq.without_arrays()
-        else:
-            check_consistent(self.first, seq)  # a setting problem: never skipped
-        self.skips.skipped += [{"path": p, "error": e} for p, e in seq.poses.bad_files]
-        music, poses, options = seq.music, seq.poses, self.options
-        if item.audio_track and read.audio is None and music is None:
-            warn_once(
-                f"{item.inputs.video}: the video has no audio track, so no music is stored for "
-                "it (--music FILE gives it music)"
-            )
-        return SequenceRecord(
-            seq_id=item.inputs.seq_id,
-            source="video",
-            path=str(item.inputs.video),
-            sha256=sequence_sha256(self.checksums, item.inputs),
-            fps=poses.fps,
-            n_frames=poses.n_frames,
-            arrays=seq.arrays(),
-            genre=options.genre,
-            music_key=None if music is None else str(music.path),
-            bpm=music.bpm if music is not None else options.bpm,
-            bpm_estimated=bool(music and music.bpm_estimated),
-            columns=video_columns(seq),
-            item=seq.without_arrays(),  # (written by then: memory holds one video's arrays)
-        )
-
-    def array_specs(self, first: SequenceRecord) -> list[StoredArray]:
-        return self.specs
-
-    def group_attrs(self) -> dict[str, dict[str, Any]]:
-        if self.first is None:
-            return {}
-        return {"motion": motion_attrs(self.first.poses, self.options.up_axis)}
-
-    def music_table(self, records: list[SequenceRecord]) -> MusicTable:
-        self.music = music_rows(_sequences(records), self.options.genre, records[0].fps)
-        return MusicTable(rows=list(self.music.values()), by_key=self.music)
-
-    def tables(
-        self, records: list[SequenceRecord], music: MusicTable
-    ) -> dict[str, list[dict[str, Any]]]:
-        return {"splits": []}
-
-    def counts(self, records: list[SequenceRecord], totals: IngestTotals) -> dict[str, Any]:
-        sequences = _sequences(records)
-        return {**video_counts(sequences, self.music, totals.skipped), **totals.read_counts}
-
-
-def _sequences(records: list[SequenceRecord]) -> list[VideoSequence]:
-    return [r.item for r in records]
-
-
-def ingest_video(
-    store: str | Path, videos: list[str | Path], options: VideoIngestOptions
-) -> CommandResult:
-    """Ingest ``videos`` with their poses (``options``) into a new version of ``store``."""
-    return ingest(store, VideoSource(videos, options))
+            switches = rep.get("tracking", {}).get("switch_frames") or []
+            if switches:
+                notes.append(f"{len(switches)} identity switch(es) at frames {switches[:10]}")
+            music = rep.get("music") or {}
+            if music.get("bpm_estimated"):
+                notes.append(f"tempo estimated: {music['bpm']:.2f} BPM")
+            if notes:
+                lines.append(f"  {seq_id}: " + "; ".join(notes))
+        return lines
