@@ -60,7 +60,7 @@ from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout, warn_once
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.writer import (
     VersionWriter,
     already_done,
@@ -193,7 +193,7 @@ def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
 def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -> CommandResult:
     layout = StoreLayout(store)
     parent = layout.resolve(options.version)
-    reader = VersionReader(store, parent)
+    reader = _VersionReader(store, parent)
     motion_attrs = reader.group_attrs("motion")
     fps = float(motion_attrs.get("fps", 60.0))
     if options.euler_order is None:
@@ -331,7 +331,7 @@ def check_work(
 
 
 def _music_inputs(
-    reader: VersionReader, cfg: AudioFeatureConfig, options: FeaturizeOptions
+    reader: _VersionReader, cfg: AudioFeatureConfig, options: FeaturizeOptions
 ) -> MusicInputs:
     """The parent's music rows, each file verified against what ingest recorded and its decoded
     span planned and limited (none when audio is off)."""
@@ -391,7 +391,7 @@ class MotionPlan:
 
 
 def _plan_motion(
-    reader: VersionReader, options: FeaturizeOptions, n_joints: int, settings: MotionSettings
+    reader: _VersionReader, options: FeaturizeOptions, n_joints: int, settings: MotionSettings
 ) -> MotionPlan:
     if not options.motion:
         return MotionPlan([], [], [], (), ())
@@ -418,13 +418,13 @@ def _plan_motion(
     return MotionPlan(runnable, absent, specs, tuple(sorted(needed)), tuple(sorted(handed_on)))
 
 
-def _skeleton_joints(reader: VersionReader) -> int:
+def _skeleton_joints(reader: _VersionReader) -> int:
     skeleton = reader.group_attrs("motion").get("skeleton") or {}
     return len(skeleton.get("joints", []))
 
 
 def _pack_audio(
-    reader: VersionReader,
+    reader: _VersionReader,
     version: VersionWriter,
     cfg: AudioFeatureConfig,
     job: AudioJob,
@@ -475,7 +475,7 @@ def _pack_audio(
 
 
 def _update_sequence_audio_frames(
-    reader: VersionReader, version: VersionWriter, music: list[dict[str, Any]]
+    reader: _VersionReader, version: VersionWriter, music: list[dict[str, Any]]
 ) -> None:
     """Recompute each sequence's usable audio frames from the actual feature lengths."""
     track_frames = {m["music_id"]: m["frame_stop"] - m["frame_start"] for m in music}

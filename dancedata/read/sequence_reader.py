@@ -1,6 +1,7 @@
 """The thin store reader: a committed version read as sequences, with nothing derived.
 
-:class:`SequenceReader` gives the tables, each sequence's slice of the stored arrays, its audio
+Private: users meet :class:`dancedata.read.loader.DanceStore` (``dancedata.open_store``), which
+is this class with the views as methods. :class:`_SequenceReader` gives the tables, each sequence's slice of the stored arrays, its audio
 aligned frame by frame, the split memberships, genres and the measures table. It computes
 nothing: the paper views (:mod:`dancedata.read.views`), the measure windows
 (:mod:`dancedata.read.views.measures`) and the AIST++ cameras
@@ -9,7 +10,7 @@ nothing: the paper views (:mod:`dancedata.read.views`), the measure windows
 
 Arrays are read whole into memory on first use and kept (a store's arrays are immutable), so
 random access afterwards costs a numpy slice. For stores larger than memory, read slices through
-:meth:`SequenceReader.zarr` instead.
+:meth:`_SequenceReader.zarr` instead.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 
 from dancedata.errors import StoreError
 from dancedata.store.layout import warn_once
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.seq_ids import seq_id_problem
 
 if TYPE_CHECKING:
@@ -51,16 +52,17 @@ def known_ids(wanted: str, ids: list[str], shown: int = 5) -> str:
     return f"{count}: {', '.join(ids[:shown])}{', ...' if len(ids) > shown else ''}"
 
 
-class SequenceReader:
+class _SequenceReader:
     """A committed version of a store, read as sequences (the generic core of
-    :class:`dancedata.read.loader.DanceStore`)."""
+    :class:`dancedata.read.loader.DanceStore`, the public reader; views type against this
+    core so that they need not import the loader)."""
 
     def __init__(self, path: str | Path, version: str | None = None) -> None:
         self.path = Path(path)
         self.locator = store_locator(path)
         """The store as given, as a string that reopens it: a local folder or a URL such as
         ``s3://bucket/prefix`` (``Path`` would turn ``s3://`` into ``s3:/``)."""
-        self._reader = VersionReader(path, version)
+        self._reader = _VersionReader(path, version)
         self.version = self._reader.version
         self._arrays: dict[str, np.ndarray] = {}
 

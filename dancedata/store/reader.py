@@ -25,9 +25,10 @@ if TYPE_CHECKING:
     import zarr
 
 
-class VersionReader:
+class _VersionReader:
     """Read-only access to ``STORE/versions/<version>`` (latest when ``version`` is None), on
-    any backend."""
+    any backend: the store layer's reader, private (users read through
+    :class:`dancedata.read.loader.DanceStore`, which holds one)."""
 
     def __init__(self, store: str | Path | StoreBackend, version: str | None = None) -> None:
         self.layout = StoreLayout(store)

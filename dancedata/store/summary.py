@@ -12,7 +12,7 @@ from dancedata.compute.bvh_units import USUAL_SIZE_M
 from dancedata.store.checkout import checkout_log
 from dancedata.store.integrity import CHECKSUMS_FILE
 from dancedata.store.layout import TABLE_FILES, StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 
 # Per annotation kind: the sequences-table column (AIST++ ingest) and whether a row lacks it.
 _MISSING_WHEN: dict[str, tuple[str, Callable[[Any], bool]]] = {
@@ -48,7 +48,7 @@ def lineage(layout: StoreLayout, version: str) -> list[dict[str, Any]]:
 
 
 def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
-    reader = VersionReader(store, version)
+    reader = _VersionReader(store, version)
     manifest = reader.manifest
     info: dict[str, Any] = {
         "store": reader.layout.backend.describe(),  # as given: a path, or a URL kept whole
@@ -119,7 +119,7 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
     return info
 
 
-def record_hash(reader: VersionReader) -> str | None:
+def record_hash(reader: _VersionReader) -> str | None:
     """sha256 of the version's checksums.json: the end of the chain of integrity records
     (docs/STORE.md, 'What records the record'), to pin outside the store; None when the
     version has no record (versions from before checksums). Read through the version's

@@ -31,7 +31,7 @@ from dancedata._version import __version__
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.layout import StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.writer import VersionWriter, already_done, hold_store_lock
 
 
@@ -51,7 +51,7 @@ class DerivedVersion:
     store: str | Path
     command: str
     parent: str
-    reader: VersionReader
+    reader: _VersionReader
     lock: Any
     wait_for_lock: bool
 
@@ -92,5 +92,5 @@ def derive_version(
     as it is once the lock is held."""
     with hold_store_lock(store, wait=wait_for_lock) as lock:
         parent = StoreLayout(store).resolve(version)
-        reader = VersionReader(store, parent)
+        reader = _VersionReader(store, parent)
         yield DerivedVersion(store, command, parent, reader, lock, wait_for_lock)

@@ -279,10 +279,10 @@ def run_experiment(
     from dancedata.study.runner_generated import GeneratedOutputs
 
     began = time.perf_counter()
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
 
     loader = DanceStore(store, version)
-    reader = VersionReader(store, loader.version)
+    reader = _VersionReader(store, loader.version)
     params = config.keyframe_params()
     metrics = config.metrics
     wants_fid = _needs_positions(metrics)  # SMPL-24 positions

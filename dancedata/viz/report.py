@@ -29,7 +29,7 @@ from typing import Any
 
 from dancedata._version import __version__
 from dancedata.errors import DancedataError, InputError
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.summary import lineage, summarize
 from dancedata.viz import report_html as h
 from dancedata.viz.plot_data import read_keyframes
@@ -398,7 +398,7 @@ def build_report(
     ``croissant``: the relative address of its Croissant record, linked from the page."""
     started = time.perf_counter()
     info = summarize(store, version)
-    reader = VersionReader(store, info["version"])
+    reader = _VersionReader(store, info["version"])
     chain = lineage(reader.layout, reader.version)
     sequences = reader.table("sequences").to_pylist() if reader.has_table("sequences") else []
     music = reader.table("music").to_pylist() if reader.has_table("music") else []
