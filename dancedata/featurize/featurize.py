@@ -55,6 +55,7 @@ from dancedata.featurize.tasks import (
 )
 from dancedata.io.smpl_model import SMPL_MODEL_ENV
 from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter, create_checked_array
+from dancedata.store.backend import StoreBackend
 from dancedata.store.backend_open import make_backend
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
@@ -184,16 +185,17 @@ def _validate(options: FeaturizeOptions) -> None:
 def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
     """Compute the requested features from ``options.version`` (default latest) of ``store``."""
     _validate(options)
+    store = make_backend(store)  # resolved once: lock, reader, writer and tasks share it
     # Parent, fingerprint and the "already done" check are read under the lock: a run that
     # waited behind another writer derives from (or finds) that writer's result.
     with hold_store_lock(store, wait=options.wait_for_lock) as lock:
         return _featurize_locked(store, options, lock)
 
 
-def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -> CommandResult:
+def _featurize_locked(store: StoreBackend, options: FeaturizeOptions, lock: Any) -> CommandResult:
     layout = StoreLayout(store)
     parent = layout.resolve(options.version)
-    reader = _VersionReader(store, parent)
+    reader = _VersionReader(layout, parent)
     motion_attrs = reader.group_attrs("motion")
     fps = float(motion_attrs.get("fps", 60.0))
     if options.euler_order is None:
@@ -303,7 +305,11 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
 
 
 def check_work(
-    options: FeaturizeOptions, motion: bool, audio: bool, music: bool, store: str | Path
+    options: FeaturizeOptions,
+    motion: bool,
+    audio: bool,
+    music: bool,
+    store: str | Path | StoreBackend,
 ) -> None:
     """Loud, not empty: a StoreError (nothing written) when this run would compute no array
     (``motion``/``audio``: arrays planned; ``music``: the store has tracks), and a one-line
@@ -346,9 +352,10 @@ def _music_inputs(
     )
 
 
-def _store_id(store: str | Path) -> str:
-    """The store as workers must name it: a URL, or an absolute local path."""
-    return make_backend(store).locator()
+def _store_id(store: StoreBackend) -> str:
+    """The store as workers must name it (they reopen it from this string): a URL, or an
+    absolute local path."""
+    return store.locator()
 
 
 def _prepare(

@@ -125,7 +125,7 @@ def _stats_step(step: DerivedVersion, options: StatsOptions) -> CommandResult:
     if not names:
         raise InputError(f"version {step.parent} has none of the default arrays; name --arrays")
     names = _check_arrays(reader, list(dict.fromkeys(names)))
-    seq = _SequenceReader(step.store, step.parent)
+    seq = _SequenceReader(reader)  # the step's open version, not a second open
     seq_ids = seq.split_members(options.split, options.scheme)
     if not seq_ids:
         raise InputError(f"split {options.split!r} of scheme {options.scheme!r} has no sequence")

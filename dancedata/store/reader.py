@@ -30,8 +30,10 @@ class _VersionReader:
     any backend: the store layer's reader, private (users read through
     :class:`dancedata.read.loader.DanceStore`, which holds one)."""
 
-    def __init__(self, store: str | Path | StoreBackend, version: str | None = None) -> None:
-        self.layout = StoreLayout(store)
+    def __init__(
+        self, store: str | Path | StoreBackend | StoreLayout, version: str | None = None
+    ) -> None:
+        self.layout = store if isinstance(store, StoreLayout) else StoreLayout(store)
         self.version = self.layout.resolve(version)
         self.path = self.layout.version_dir(self.version)  # a Path locally, else a URL
         self.files = self.layout.version_backend(self.version)

@@ -61,7 +61,7 @@ def validate_store(
     for name in names:
         problems += [f"{name}: {p}" for p in integrity[name]]
         try:
-            reader = _VersionReader(store, name)
+            reader = _VersionReader(layout, name)  # the store resolved once, above
         except StoreError as exc:
             problems.append(f"{name}: {exc}")
             continue

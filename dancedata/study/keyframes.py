@@ -394,7 +394,7 @@ def keyframes(store: str | Path, options: KeyframesOptions) -> CommandResult:
 def _keyframes_step(step: DerivedVersion, options: KeyframesOptions) -> CommandResult:
     from dancedata.read.loader import DanceStore
 
-    store, parent, reader = step.store, step.parent, step.reader
+    reader = step.reader
     stages = reader.manifest.get("stages") or {}
     data = {stage: stages.get(stage) for stage in DATA_STAGES}
     if data["ingest"] is None:
@@ -431,7 +431,7 @@ def _keyframes_step(step: DerivedVersion, options: KeyframesOptions) -> CommandR
         return done
 
     measures, sequences = _measure_set(reader, options)
-    loader = DanceStore(store, parent)
+    loader = DanceStore(reader)  # the step's open parent, not a second open
     everything = np.arange(len(measures.seq_id))
     selections: list[tuple[str, int, str, list[Selection]]] = []
     skipped: dict[tuple[str, str], str] = {}
