@@ -51,6 +51,7 @@ from dancedata.io.bvh import (
 from dancedata.io.bvh_attrs import is_bvh_skeleton, skeleton_from_attrs
 from dancedata.io.bvh_ops import clip_from_rotations
 from dancedata.read.sequence_reader import known_ids
+from dancedata.store.backend import StoreBackend
 from dancedata.store.reader import _VersionReader
 
 __all__ = ["BvhExportOptions", "BvhExportResult", "export_bvh", "sequence_clip"]
@@ -223,7 +224,7 @@ def _generated_clip(
 
 
 def sequence_clip(
-    store: str | Path, seq_id: str, options: BvhExportOptions | None = None
+    store: str | Path | StoreBackend, seq_id: str, options: BvhExportOptions | None = None
 ) -> tuple[BvhClip, BvhExportResult]:
     """The BVH clip (in the output unit) of one stored sequence, and a description of it."""
     options = options or BvhExportOptions()
@@ -271,7 +272,10 @@ def sequence_clip(
 
 
 def export_bvh(
-    store: str | Path, seq_id: str, out: str | Path, options: BvhExportOptions | None = None
+    store: str | Path | StoreBackend,
+    seq_id: str,
+    out: str | Path,
+    options: BvhExportOptions | None = None,
 ) -> BvhExportResult:
     """Write sequence ``seq_id`` of ``store`` to the BVH file ``out`` (atomically)."""
     options = options or BvhExportOptions()

@@ -182,14 +182,14 @@ def _validate(options: FeaturizeOptions) -> None:
         ) from None
 
 
-def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
+def featurize(store: str | Path | StoreBackend, options: FeaturizeOptions) -> CommandResult:
     """Compute the requested features from ``options.version`` (default latest) of ``store``."""
     _validate(options)
-    store = make_backend(store)  # resolved once: lock, reader, writer and tasks share it
+    handle = make_backend(store)  # resolved once: lock, reader, writer and tasks share it
     # Parent, fingerprint and the "already done" check are read under the lock: a run that
     # waited behind another writer derives from (or finds) that writer's result.
-    with hold_store_lock(store, wait=options.wait_for_lock) as lock:
-        return _featurize_locked(store, options, lock)
+    with hold_store_lock(handle, wait=options.wait_for_lock) as lock:
+        return _featurize_locked(handle, options, lock)
 
 
 def _featurize_locked(store: StoreBackend, options: FeaturizeOptions, lock: Any) -> CommandResult:

@@ -39,6 +39,8 @@ from dancedata.errors import InputError
 from dancedata.featurize.segment import SegmentOptions, beat_rows, measure_rows, phrase_rows
 from dancedata.io.audio import feature_frames, resampled_length
 from dancedata.store.arrays import FrameArrayWriter
+from dancedata.store.backend import StoreBackend
+from dancedata.store.backend_open import make_backend
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.layout import warn_once
@@ -87,13 +89,14 @@ def check_fps(fps: Any, what: str = "--fps") -> float:
     return value
 
 
-def resample(store: str | Path, options: ResampleOptions) -> CommandResult:
+def resample(store: str | Path | StoreBackend, options: ResampleOptions) -> CommandResult:
     """Write ``options.version`` (default: the latest) at ``options.fps`` as a new version;
     then, when the parent had audio features or windowed motion features, recompute them with
     featurize at the new rate (one more version; the result names the last one and, under
     ``counts["resample_version"]``, the resampled one)."""
     fps = check_fps(options.fps)
-    with derive_version(store, "resample", options.version, options.wait_for_lock) as step:
+    handle = make_backend(store)  # resolved once: the resample step and the featurize share it
+    with derive_version(handle, "resample", options.version, options.wait_for_lock) as step:
         result, todo = _resample_step(step, fps)
     if options.featurize and todo["settings_differ"]:
         warn_once(
@@ -105,7 +108,7 @@ def resample(store: str | Path, options: ResampleOptions) -> CommandResult:
     from dancedata.featurize.featurize import FeaturizeOptions, featurize
 
     feat = featurize(
-        store,
+        handle,
         FeaturizeOptions(
             motion=bool(todo["motion_families"]),
             motion_families=todo["motion_families"],

@@ -23,6 +23,7 @@ import numpy as np
 from dancedata.compute.normalization import STD_FLOOR, Moments
 from dancedata.errors import InputError
 from dancedata.read.sequence_reader import _SequenceReader
+from dancedata.store.backend import StoreBackend
 from dancedata.store.command_result import CommandResult
 from dancedata.store.reader import _VersionReader
 from dancedata.store.version_step import DerivedVersion, derive_version
@@ -110,7 +111,7 @@ def _check_arrays(reader: _VersionReader, names: list[str]) -> list[str]:
     return names
 
 
-def stats(store: str | Path, options: StatsOptions) -> CommandResult:
+def stats(store: str | Path | StoreBackend, options: StatsOptions) -> CommandResult:
     """Compute the split's statistics of each array and write them as a new version derived
     from ``options.version`` (default: the latest, as it is once the lock is held)."""
     with derive_version(store, "stats", options.version, options.wait_for_lock) as step:

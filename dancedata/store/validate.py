@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from dancedata.errors import StoreError
+from dancedata.store.backend import StoreBackend
 from dancedata.store.contract import store_schema
 from dancedata.store.integrity import verify_store
 from dancedata.store.layout import MANIFEST_FILE, ZARR_DIR, StoreLayout
@@ -26,7 +27,7 @@ from dancedata.store.untrusted import MANIFEST_LIMIT, read_json
 
 
 def validate_store(
-    store: str | Path, version: str | None = None, *, deep: bool = False
+    store: str | Path | StoreBackend, version: str | None = None, *, deep: bool = False
 ) -> list[str]:
     """Problems with ``store`` (every committed version, or only ``version``).
 
@@ -467,7 +468,7 @@ def _check_finite(
     return problems
 
 
-def store_notes(store: str | Path) -> list[str]:
+def store_notes(store: str | Path | StoreBackend) -> list[str]:
     """Things worth knowing that are not contract violations: unfinished temporary versions
     (never visible to readers; the next writer resumes or removes them) and the write lock,
     on every backend."""

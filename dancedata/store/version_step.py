@@ -89,7 +89,7 @@ class DerivedVersion:
 
 @contextmanager
 def derive_version(
-    store: str | Path, command: str, version: str | None, wait_for_lock: bool
+    store: str | Path | StoreBackend, command: str, version: str | None, wait_for_lock: bool
 ) -> Iterator[DerivedVersion]:
     """Hold the store lock for the block and open the parent: ``version``, or the latest one
     as it is once the lock is held."""

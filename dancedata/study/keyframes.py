@@ -33,6 +33,7 @@ from dancedata.methods.keyframes import (
 )
 from dancedata.methods.keyframes_dp import dp_keyframes_batch
 from dancedata.methods.keyframes_peaks import DP, KEYFRAME_SOURCES, peak_keyframes_batch
+from dancedata.store.backend import StoreBackend
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.reader import _VersionReader
@@ -382,7 +383,7 @@ def _table(selections: list[tuple[str, int, str, list[Selection]]], measures: Me
     return table
 
 
-def keyframes(store: str | Path, options: KeyframesOptions) -> CommandResult:
+def keyframes(store: str | Path | StoreBackend, options: KeyframesOptions) -> CommandResult:
     """Select keyframes for every measure and write the keyframes table as a new version
     derived from ``options.version`` (default: the latest, as it is once the lock is held)."""
     # Parent, fingerprint and the "already done" check are read under the store lock, as in
