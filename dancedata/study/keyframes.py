@@ -485,7 +485,11 @@ def _keyframes_step(step: DerivedVersion, options: KeyframesOptions) -> CommandR
 
 def read_keyframes(store: str | Path, version: str | None = None) -> Any:
     """The keyframes table of a version (pyarrow Table); StoreError when it has none."""
-    reader = _VersionReader(store, version)
+    return _keyframes_table(_VersionReader(store, version))
+
+
+def _keyframes_table(reader: _VersionReader) -> Any:
+    """The keyframes table of the open version ``reader``; StoreError when it has none."""
     if not reader.has_table("keyframes"):
         raise StoreError(
             f"version {reader.version} has no keyframes table (run `dancedata keyframes`)"
@@ -528,7 +532,7 @@ def keyframe_run(
     taken from the sequences and measures tables of the same version.
     """
     reader = _VersionReader(store, version)
-    table = read_keyframes(store, reader.version)
+    table = _keyframes_table(reader)  # the same open version, not a second open
     runs = reader.manifest.get("config", {}).get("run_ids", {})
     if run_id is None:
         if strategy is None or n_keyframes is None:

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from dancedata.errors import StoreError
+from dancedata.store.backend import StoreBackend
 from dancedata.store.layout import TABLE_FILES
 from dancedata.store.reader import _VersionReader
 
@@ -185,7 +186,7 @@ def _split_counts(reader: _VersionReader) -> str:
 
 
 def croissant_record(
-    store: str | Path,
+    store: str | Path | StoreBackend,
     version: str | None = None,
     *,
     license: str | None = None,

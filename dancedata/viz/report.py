@@ -29,6 +29,7 @@ from typing import Any
 
 from dancedata._version import __version__
 from dancedata.errors import DancedataError, InputError
+from dancedata.store.backend import StoreBackend
 from dancedata.store.reader import _VersionReader
 from dancedata.store.summary import lineage, summarize
 from dancedata.viz import report_html as h
@@ -386,7 +387,7 @@ def _gallery(reader: _VersionReader, seq_ids: list[str], dpi: float) -> str:
 
 
 def build_report(
-    store: str | Path,
+    store: str | Path | StoreBackend,
     version: str | None = None,
     *,
     gallery: int = 3,
