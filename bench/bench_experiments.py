@@ -43,9 +43,9 @@ INBETWEENERS = ("linear_slerp", "bezier_oracle")
 
 
 def supported(store: Path) -> list[str]:
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
 
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     out = ["even"]
     for name, array in (
         ("onset", "audio/onset_env"),

@@ -35,9 +35,9 @@ NS = (3, 5, 9)
 
 
 def supported(store: Path) -> list[str]:
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
 
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     out = ["even"]
     if reader.has_array("audio/onset_env"):
         out.append("peaks:onset")

@@ -6,7 +6,7 @@ import json
 from typing import Annotated
 
 import typer
-from dancedata.cli.common import Json, Wait
+from dancedata.cli.common import Json, Wait, open_handle
 from dancedata.cli.main import app
 
 
@@ -25,7 +25,7 @@ def checkout(
     """
     from dancedata.store.checkout import checkout as run
 
-    result = run(store, version, wait=wait)
+    result = run(open_handle(store), version, wait=wait)
     if as_json:
         typer.echo(json.dumps(result.as_dict(), indent=2))
     else:

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import json
 from enum import StrEnum
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
+
+if TYPE_CHECKING:
+    from dancedata.store.backend import StoreBackend
 
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars.")]
 Json = Annotated[
@@ -77,13 +80,23 @@ OnErrorOpt = Annotated[
 ]
 
 
+def open_handle(store: str) -> StoreBackend:
+    """The STORE argument resolved once, here at the boundary, into the handle every step
+    below takes (readers, writers, locks; worker tasks get its ``locator()`` string)."""
+    from dancedata.store.backend_open import make_backend
+
+    return make_backend(store)
+
+
 def setup(quiet: bool) -> None:
     from dancedata.progress import set_quiet
 
     set_quiet(quiet)
 
 
-def report(result: Any, command: str, as_json: bool, store: str | None = None) -> None:
+def report(
+    result: Any, command: str, as_json: bool, store: str | StoreBackend | None = None
+) -> None:
     """Print the command's result: one human line (stderr when --json) or the JSON summary.
     A result found in a version that is not the latest (``store`` given) says which version
     is the latest and how to switch to the one that holds the result."""
@@ -104,7 +117,7 @@ def report(result: Any, command: str, as_json: bool, store: str | None = None) -
         typer.echo(f"  skipped {item['path']}: {item['error']}", err=True)
 
 
-def _switch_hint(result: Any, store: str | None) -> str | None:
+def _switch_hint(result: Any, store: str | StoreBackend | None) -> str | None:
     """For a "nothing to do" result: fill in the store's latest version when the command did
     not, and the checkout command that makes the found version the latest (None if it is)."""
     if store is None or getattr(result, "created", True):
@@ -112,6 +125,7 @@ def _switch_hint(result: Any, store: str | None) -> str | None:
     from dancedata.store.checkout import builds_on, switch_hint
     from dancedata.store.layout import StoreLayout
 
+    store = open_handle(store) if isinstance(store, str) else store
     if getattr(result, "latest", None) is None:
         result.latest = StoreLayout(store).latest()
     if result.latest is not None and result.latest != result.version:

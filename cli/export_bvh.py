@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 from dancedata.cli.apps import export_app
-from dancedata.cli.common import Json, VersionOpt, report
+from dancedata.cli.common import Json, VersionOpt, open_handle, report
 
 
 @export_app.command("bvh")
@@ -45,4 +45,4 @@ def export_bvh_cmd(
     options = BvhExportOptions(
         version=version, units=units, rotation_order=rotation_order, smpl_model=smpl_model
     )
-    report(export_bvh(store, seq_id, out, options), "export bvh", as_json)
+    report(export_bvh(open_handle(store), seq_id, out, options), "export bvh", as_json)

@@ -6,7 +6,7 @@ import json
 from typing import Annotated
 
 import typer
-from dancedata.cli.common import Json, VersionOpt
+from dancedata.cli.common import Json, VersionOpt, open_handle
 from dancedata.cli.main import app
 
 
@@ -19,7 +19,7 @@ def info(
     """Summarise a version: sequences, genres, tempi, splits, arrays and tables."""
     from dancedata.store.summary import format_info, summarize
 
-    summary = summarize(store, version)
+    summary = summarize(open_handle(store), version)
     typer.echo(json.dumps(summary, indent=2, default=str) if as_json else format_info(summary))
 
 
@@ -31,7 +31,8 @@ def versions(
     """List committed versions, oldest first, with the command that made each."""
     from dancedata.store.layout import StoreLayout
 
-    layout = StoreLayout(store)
+    handle = open_handle(store)
+    layout = StoreLayout(handle)
     latest = layout.latest()
     rows = []
     for name in layout.committed_versions():
@@ -48,7 +49,7 @@ def versions(
         )
     from dancedata.store.validate import store_notes
 
-    for note in store_notes(store):  # on stderr, so --json output stays clean
+    for note in store_notes(handle):  # on stderr, so --json output stays clean
         typer.echo(f"  note: {note}", err=True)
     if as_json:
         typer.echo(json.dumps(rows, indent=2))
@@ -79,8 +80,9 @@ def validate(
     With --deep, name every corrupted chunk, array and table."""
     from dancedata.store.validate import MAX_SHOWN, shown_problems, store_notes, validate_store
 
-    problems = validate_store(store, version, deep=deep)
-    notes = store_notes(store)
+    handle = open_handle(store)
+    problems = validate_store(handle, version, deep=deep)
+    notes = store_notes(handle)
     shown, hidden = shown_problems(problems)
     if as_json:
         record = {

@@ -5,7 +5,16 @@ from __future__ import annotations
 from typing import Annotated
 
 import typer
-from dancedata.cli.common import Json, Quiet, VersionOpt, Wait, report, setup, split_csv
+from dancedata.cli.common import (
+    Json,
+    Quiet,
+    VersionOpt,
+    Wait,
+    open_handle,
+    report,
+    setup,
+    split_csv,
+)
 from dancedata.cli.main import app
 
 
@@ -166,4 +175,5 @@ def keyframes_command(
         version=version,
         wait_for_lock=wait,
     )
-    report(run(store, options), "keyframes", as_json, store=str(store))
+    handle = open_handle(store)
+    report(run(handle, options), "keyframes", as_json, store=handle)

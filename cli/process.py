@@ -21,6 +21,7 @@ from dancedata.cli.common import (
     VersionOpt,
     Wait,
     Workers,
+    open_handle,
     report,
     setup,
     split_csv,
@@ -113,7 +114,8 @@ def featurize(
         max_audio_seconds=max_audio_seconds or None,
         resampler=resampler,
     )
-    report(run(store, options), "featurize", as_json, store=str(store))
+    handle = open_handle(store)
+    report(run(handle, options), "featurize", as_json, store=handle)
 
 
 @app.command()
@@ -166,8 +168,9 @@ def segment(
         tables=tuple(split_csv(tables) or ["measures"]),
         phrase_measures=phrase_measures,
     )
-    result = run(store, options)
-    report(result, "segment", as_json, store=str(store))
+    handle = open_handle(store)
+    result = run(handle, options)
+    report(result, "segment", as_json, store=handle)
     if not as_json and not quiet:
         for music_id, track in sorted((result.counts.get("phase") or {}).items()):
             typer.echo(

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from dancedata.cli.common import VersionOpt
+from dancedata.cli.common import VersionOpt, open_handle
 from dancedata.cli.main import app
 
 
@@ -38,11 +38,12 @@ def report(
 
     check_report_path(out)
     record = out.with_suffix(".croissant.json") if croissant else None
-    html = build_report(store, version, gallery=gallery, croissant=record.name if record else None)
+    handle = open_handle(store)  # one handle for the card and its Croissant record
+    html = build_report(handle, version, gallery=gallery, croissant=record.name if record else None)
     if record is not None:
         from dancedata.viz.croissant import croissant_record, write_croissant
 
         typer.echo(
-            f"report: wrote {write_croissant(croissant_record(store, version), record, store)}"
+            f"report: wrote {write_croissant(croissant_record(handle, version), record, store)}"
         )
     typer.echo(f"report: wrote {write_report(html, out)} ({len(html.encode()) / 1e6:.2f} MB)")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated
 
 import typer
-from dancedata.cli.common import Json, Quiet, VersionOpt, Wait, report, setup
+from dancedata.cli.common import Json, Quiet, VersionOpt, Wait, open_handle, report, setup
 from dancedata.cli.main import app
 
 
@@ -51,4 +51,5 @@ def resample_command(
     options = ResampleOptions(
         fps=check_fps(fps), version=version, wait_for_lock=wait, featurize=featurize
     )
-    report(run(store, options), "resample", as_json, store=str(store))
+    handle = open_handle(store)
+    report(run(handle, options), "resample", as_json, store=handle)

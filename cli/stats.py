@@ -5,7 +5,16 @@ from __future__ import annotations
 from typing import Annotated
 
 import typer
-from dancedata.cli.common import Json, Quiet, VersionOpt, Wait, report, setup, split_csv
+from dancedata.cli.common import (
+    Json,
+    Quiet,
+    VersionOpt,
+    Wait,
+    open_handle,
+    report,
+    setup,
+    split_csv,
+)
 from dancedata.cli.main import app
 
 
@@ -44,4 +53,5 @@ def stats_command(
         version=version,
         wait_for_lock=wait,
     )
-    report(run(store, options), "stats", as_json, store=str(store))
+    handle = open_handle(store)
+    report(run(handle, options), "stats", as_json, store=handle)

@@ -63,8 +63,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--no-video", action="store_true", help="Skip the MP4 render.")
     args = parser.parse_args(argv)
 
+    import dancedata
     from dancedata.compute.beat_units import choreograph_segments, retime_positions
-    from dancedata.store.reader import VersionReader
 
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -81,13 +81,13 @@ def main(argv: list[str] | None = None) -> dict:
     run("featurize", str(store), "--motion-families", "positions,kinematics", "--no-audio", "-q")
     run("segment", str(store), "--tables", "measures,beats,phrases", "--phrase-measures", "4", "-q")
 
-    reader = VersionReader(store)
+    reader = dancedata.open_store(store)
     fps = float(reader.group_attrs("motion")["fps"])
     sequences = reader.table("sequences").to_pylist()
     beats = reader.table("beats").to_pylist()
     phrases = reader.table("phrases").to_pylist()
-    motion_beats = np.asarray(reader.array("motion/motion_beats_mint")[:])
-    positions = np.asarray(reader.array("motion/positions")[:], dtype=np.float64)
+    motion_beats = reader.whole_array("motion/motion_beats_mint")
+    positions = reader.whole_array("motion/positions").astype(np.float64)
 
     rows = []
     for seq in sequences:
@@ -155,14 +155,14 @@ def main(argv: list[str] | None = None) -> dict:
             "--no-motion",
             "-q",
         )
-        mel_reader = VersionReader(store)
+        mel_reader = dancedata.open_store(store)
         music = {m["music_id"]: m for m in mel_reader.table("music").to_pylist()}
         row = next(
             s for s in mel_reader.table("sequences").to_pylist() if s["seq_id"] == seq["seq_id"]
         )
         k = round(mel_reader.group_attrs("audio")["fps"] / fps)  # 60 Hz rows per 20 fps frame
         first = music[row["music_id"]]["frame_start"] + int(row["audio_offset"])
-        mel = np.asarray(mel_reader.array("audio/mel96")[first + k * dst[0] : first + k * dst[1]])
+        mel = np.asarray(mel_reader.zarr("audio/mel96")[first + k * dst[0] : first + k * dst[1]])
         np.save(out / "segment_mel96.npy", mel)
         print(f"music: mel96 of the segment at 60 Hz, {mel.shape} (the study's [96, 4*60] input)")
         run("checkout", str(store), reader.version)  # the 20 fps study version is the latest again

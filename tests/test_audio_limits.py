@@ -22,7 +22,7 @@ from dancedata.featurize.music_inputs import DECODE_MARGIN_S, decode_span_s
 from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
 from dancedata.io.audio import load_mono
 from dancedata.io.audio_decode import MAX_ABS_SAMPLE, decode_mono
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from tests.helpers import REPO, run_cli
 from tests.test_ingest_bvh import synthetic_bvh
 
@@ -99,7 +99,7 @@ def test_decode_reads_only_the_first_seconds_of_a_long_flac(tmp_path: Path) -> N
 def test_ten_minute_flac_under_a_ten_second_dance_decodes_forty_seconds(tmp_path: Path) -> None:
     store = store_with(tmp_path, silent_flac(tmp_path / "long.flac", 600.0))
     result = featurize(store, FeaturizeOptions(audio_settings=FACT_ONLY, use_cache=False))
-    reader = VersionReader(store, result.version)
+    reader = _VersionReader(store, result.version)
     music = reader.table("music").to_pylist()[0]
     expected, partial = decode_span_s(300, AudioFeatureConfig(fps=FPS), 600.0)
     assert partial and music["decoded_s"] == pytest.approx(expected)
@@ -119,7 +119,7 @@ def test_features_on_the_span_match_librosa_on_the_whole_track(tmp_path: Path) -
     clicks(path, 180.0)
     store = store_with(tmp_path, path)
     result = featurize(store, FeaturizeOptions(audio_settings=FACT_ONLY, use_cache=False))
-    reader = VersionReader(store, result.version)
+    reader = _VersionReader(store, result.version)
     assert reader.table("music").to_pylist()[0]["decoded_s"] < 60
     sr = int(FPS * 512)
     y, _ = librosa.load(path, sr=sr)
@@ -143,7 +143,7 @@ def test_long_span_is_refused_before_decoding_unless_allowed(tmp_path: Path) -> 
     assert str(tmp_path / "long.flac") in line and "--max-audio-seconds 51" in line
     assert [p.name for p in (store / "versions").iterdir()] == ["v1"]  # nothing written
     run_cli("featurize", str(store), "--stems", "none", "--max-audio-seconds", "0", "-q")
-    assert VersionReader(store).version == "v2"
+    assert _VersionReader(store).version == "v2"
 
 
 @pytest.mark.slow
@@ -171,7 +171,7 @@ def test_peak_memory_of_an_hour_of_flac_is_that_of_the_span(tmp_path: Path) -> N
     )
     peak_kb = int(proc.stdout.split()[-1])
     assert peak_kb < 900_000, f"featurize peaked at {peak_kb / 1e6:.2f} GB"
-    assert VersionReader(store).table("music").to_pylist()[0]["decoded_s"] < 45
+    assert _VersionReader(store).table("music").to_pylist()[0]["decoded_s"] < 45
 
 
 # ----------------------------------------------------------------------------- bad samples
@@ -236,7 +236,7 @@ def test_twenty_minute_silent_flac_named_wav_through_featurize(tmp_path: Path) -
     liar = silent_flac(tmp_path / "quiet.wav", 1200.0)
     store = store_with(tmp_path, liar)
     result = featurize(store, FeaturizeOptions(audio_settings=FACT_ONLY, use_cache=False))
-    music = VersionReader(store, result.version).table("music").to_pylist()[0]
+    music = _VersionReader(store, result.version).table("music").to_pylist()[0]
     assert music["duration_s"] == 1200.0 and music["decoded_s"] < 45
 
 

@@ -198,9 +198,9 @@ def test_ingest_skip_records_every_bad_motion_and_ingests_the_rest(corpus, store
         assert "\n" not in skipped[path]
         assert re.search(case.expect, skipped[path]), (case.name, skipped[path])
     # The good sequences are in; the bad are not; v1 is untouched; the new version is valid.
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
 
-    seq_ids = set(VersionReader(store_v1, "v2").table("sequences").column("seq_id").to_pylist())
+    seq_ids = set(_VersionReader(store_v1, "v2").table("sequences").column("seq_id").to_pylist())
     good = {p.stem for p in (raw / "motions").glob("*.pkl")} - {Path(p).stem for p in expected}
     assert seq_ids == good and len(good) == 3
     assert {k: v for k, v in _snapshot(store_v1).items() if k.startswith("versions/v1/")} == {
@@ -248,9 +248,9 @@ def test_split_files_naming_missing_sequences_are_reported_and_skipped(corpus, t
     root, _ = corpus
     store = tmp_path / "store"
     result = ingest_aist(store, root / "aist_motions", AistIngestOptions(on_error="skip"))
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
 
-    reader = VersionReader(store, result.version)
+    reader = _VersionReader(store, result.version)
     present = set(reader.table("sequences").column("seq_id").to_pylist())
     split_ids = set(reader.table("splits").column("seq_id").to_pylist())
     assert split_ids <= present  # no row for a ghost name
@@ -301,9 +301,9 @@ def test_music_with_a_wrong_extension_is_read_by_content_or_reported_missing(tmp
     sf.write(flac, y, sr, format="FLAC")
     shutil.copy(flac, wavs[0])
     ok = ingest_aist(tmp_path / "s1", raw, AistIngestOptions())
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
 
-    music = VersionReader(tmp_path / "s1", ok.version).table("music").to_pylist()
+    music = _VersionReader(tmp_path / "s1", ok.version).table("music").to_pylist()
     row = next(r for r in music if r["music_id"] == wavs[0].stem)
     assert row["n_samples"] == len(y) and row["sr"] == sr
     # A music file with an extension dancedata does not read: reported as not found, one line.
@@ -331,9 +331,9 @@ def test_silent_music_is_accepted_with_finite_features_and_no_beats(tmp_path):
     store = tmp_path / "store"
     ingest_aist(store, raw, AistIngestOptions())
     featurize(store, FeaturizeOptions(motion=False))
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
 
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     for name in reader.array_names():
         if name.startswith("audio/"):
             values = np.asarray(reader.array(name)[...])

@@ -303,9 +303,9 @@ def test_arrays_opened_by_a_reader_pickle_with_their_checks(store):
     """Dask and worker processes may ship an open array: the copy still refuses bad chunks."""
     import pickle
 
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
 
-    array = VersionReader(store).array("motion/trans")
+    array = _VersionReader(store).array("motion/trans")
     copy = pickle.loads(pickle.dumps(array))
     assert np.array_equal(np.asarray(copy[:]), np.asarray(array[:]))
     _delete_everywhere(store, TRANS)

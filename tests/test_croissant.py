@@ -39,7 +39,7 @@ def _published(store, tmp_path, *args: str):
 def test_card_validates_and_loads_through_mlcroissant(small_featurized_store, tmp_path) -> None:
     import pyarrow.parquet as pq
 
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
 
     store = small_featurized_store
     version, folder, out = _published(
@@ -51,7 +51,7 @@ def test_card_validates_and_loads_through_mlcroissant(small_featurized_store, tm
     assert dataset.metadata.license == ["CC-BY-4.0"] or dataset.metadata.license == "CC-BY-4.0"
     assert record["citeAs"] == "@misc{demo, title={Demo}}"
 
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     manifest = reader.manifest
     assert record["identifier"] == f"{version}:{manifest['fingerprint']}"
     assert manifest["dancedata_version"] in record["description"]

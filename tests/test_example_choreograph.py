@@ -13,7 +13,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "examples" / "study_004_choreograph.py"
@@ -32,8 +32,8 @@ def _check(out: Path, printed: str, music: bool) -> dict:
     assert "$ dancedata ingest aist" in printed and "re-tempo:" in printed
     assert summary["fps"] == 20.0
     store = Path(summary["store"])
-    v20 = VersionReader(store, summary["versions"]["20fps"])
-    v60 = VersionReader(store, summary["versions"]["60fps"])
+    v20 = _VersionReader(store, summary["versions"]["20fps"])
+    v60 = _VersionReader(store, summary["versions"]["60fps"])
     assert v20.group_attrs("motion")["fps"] == 20.0 and v60.group_attrs("motion")["fps"] == 60.0
     for a, b in zip(
         v60.table("sequences").to_pylist(), v20.table("sequences").to_pylist(), strict=True
@@ -51,11 +51,11 @@ def _check(out: Path, printed: str, music: bool) -> dict:
     assert summary["factor"] == pytest.approx(float(seg["factor"]))
     assert seg["positions"].shape == (d1 - d0 + 1, 24, 3)
     positions = np.asarray(
-        VersionReader(store, summary["versions"]["study"]).array("motion/positions")[:]
+        _VersionReader(store, summary["versions"]["study"]).array("motion/positions")[:]
     )
     seq = next(
         s
-        for s in VersionReader(store, summary["versions"]["study"]).table("sequences").to_pylist()
+        for s in _VersionReader(store, summary["versions"]["study"]).table("sequences").to_pylist()
         if s["seq_id"] == summary["picked"]["seq_id"]
     )
     own = positions[seq["frame_start"] : seq["frame_stop"]]

@@ -22,7 +22,7 @@ from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
 from dancedata.io.bvh import euler_degrees, local_translations, read_bvh
 from dancedata.io.bvh_ops import local_rotmats, world_positions
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
 from tests.test_ingest_bvh import REAL
@@ -87,7 +87,7 @@ def smpl_store(tmp_path: Path) -> Path:
 
 def test_smpl_store_exports_a_generated_layout(tmp_path: Path) -> None:
     store = smpl_store(tmp_path)
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     seq = reader.table("sequences").to_pylist()[0]
     f0, f1 = seq["frame_start"], seq["frame_stop"]
     axis_angle = np.asarray(reader.array("motion/axis_angle")[f0:f1], dtype=np.float64)

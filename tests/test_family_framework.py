@@ -28,7 +28,7 @@ from dancedata.featurize.featurize import FeaturizeOptions, featurize
 from dancedata.featurize.schema_arrays import SCHEMA_PATH, generated_schema_text
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.store.layout import StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
 from tests.test_motion_families import write_npz_model
@@ -213,7 +213,7 @@ def _aist_store(tmp_path: Path, name: str) -> Path:
 
 
 def _arrays(store: Path) -> dict[str, np.ndarray]:
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     return {n: np.asarray(reader.array(n)[:]) for n in reader.array_names()}
 
 
@@ -276,10 +276,10 @@ def test_the_smpl_model_reaches_worker_processes_inside_the_task(
             audio=False, motion_families=["positions"], smpl_model=str(model), workers=workers
         )
         featurize(store, options)
-        runs[workers] = VersionReader(store).array("motion/positions")
+        runs[workers] = _VersionReader(store).array("motion/positions")
     sha = hashlib.sha256(model.read_bytes()).hexdigest()
     assert runs[2].attrs["smpl_model"]["sha256"] == sha
     np.testing.assert_array_equal(runs[2][:], runs[1][:])
     builtin = _aist_store(tmp_path, "builtin")
     featurize(builtin, FeaturizeOptions(audio=False, motion_families=["positions"], workers=2))
-    assert "smpl_model" not in VersionReader(builtin).array("motion/positions").attrs
+    assert "smpl_model" not in _VersionReader(builtin).array("motion/positions").attrs

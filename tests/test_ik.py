@@ -35,7 +35,7 @@ from dancedata.featurize.families.motion_ik import RotationsFromPositionsFamily
 from dancedata.io.bvh import read_bvh
 from dancedata.io.bvh_ops import world_positions
 from dancedata.io.openpose import BODY_25, COCO_18
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from tests.helpers import run_cli
 
 PARENTS = list(BODY_25.parents)
@@ -289,7 +289,7 @@ def test_joints_csv_to_bvh_through_the_cli_within_a_millimetre(tmp_path: Path) -
     print(f"synthetic BODY_25 CSV → BVH → FK: max error {error.max() * 1e3:.4f} mm")
     assert error[:, HAS_CHILD].max() < 1e-3  # the bar: within 1 mm for every joint with a child
     assert error.max() < 1e-3
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     axis_angle = reader.array("motion/axis_angle")
     assert axis_angle.attrs["method"] == IK_METHOD and axis_angle.attrs["units"] == "rad"
     assert reader.array("motion/trans").attrs["method"]["name"] == "bone_direction_ik"
@@ -336,7 +336,7 @@ def test_real_aist_keypoints_to_bvh_reproduce_the_recorded_residual(
     positions = np.stack([neck if n == "Neck" else coco17[:, take[n]] for n in COCO_18.joints], 1)
     csv = write_joints_csv(tmp_path / "gBR.csv", COCO_18.joints, positions)
     fk, store = csv_to_bvh_positions(tmp_path, csv, "60", "m", COCO_18.joints, max_gap="3")
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     stored = np.asarray(reader.array("motion/positions")[:], np.float64)  # knee gaps filled
     residual = np.asarray(reader.array("motion/ik_residual")[:], np.float64)
     error = np.linalg.norm(fk - stored, axis=-1)

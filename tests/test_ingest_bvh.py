@@ -16,7 +16,7 @@ from dancedata.featurize.featurize import FeaturizeOptions, featurize
 from dancedata.featurize.segment import SegmentOptions, segment
 from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
 from dancedata.io.bvh import BvhClip, BvhSkeleton, read_bvh, write_bvh
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import validate_store
 from tests.helpers import run_cli
 
@@ -72,7 +72,7 @@ def ingest(store: Path, *paths: Path, **options):
 
 
 def arrays(store: Path, version: str | None = None) -> dict[str, np.ndarray]:
-    reader = VersionReader(store, version)
+    reader = _VersionReader(store, version)
     return {
         name.split("/")[1]: np.asarray(reader.array(name)[:], dtype=np.float64)
         for name in reader.array_names()
@@ -123,7 +123,7 @@ def test_real_rig_arrays_match_independent_references(
     skel = clip.skeleton
     ref = reference(clip, metres)
     got = arrays(store)
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     attrs = reader.group_attrs("motion")
 
     # Skeleton attrs: everything export needs, lengths in metres.
@@ -192,7 +192,7 @@ def test_integer_ratio_decimates_exactly(real_data: Path, tmp_path: Path) -> Non
     assert got["euler"].shape[0] == (clip.n_frames - 1) // 4 + 1 == 688
     ref = reference(BvhClip(clip.skeleton, clip.frame_time_s, clip.values[::4]), 0.056444)
     assert np.abs(got["positions"] - ref["positions"]).max() < 1e-5
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     assert reader.group_attrs("motion")["fps"] == 30.0
     config = reader.manifest["config"]
     assert config["fps"] == 30.0 and config["units"] == "0.056444"
@@ -238,7 +238,7 @@ def test_smoothing_removes_fast_wobble(tmp_path: Path) -> None:
     inner = slice(60, -60)  # away from the filter's edge effects
     assert np.abs(raw - slow)[inner].max() > 3.5
     assert np.abs(smooth - slow)[inner].max() < 0.6
-    config = VersionReader(tmp_path / "smooth").manifest["config"]["smooth"]
+    config = _VersionReader(tmp_path / "smooth").manifest["config"]["smooth"]
     assert config["cutoff_hz"] == 5.0 and config["order"] == 2 and "quaternions" in config["on"]
     with pytest.raises(InputError, match="wobble.bvh.*cutoff"):
         ingest(tmp_path / "bad", path, smooth_cutoff_hz=70.0)
@@ -262,7 +262,7 @@ def test_one_skeleton_and_one_rate_per_store(real_data: Path, tmp_path: Path) ->
         ingest(tmp_path / "a", mocap, free)
     result = ingest(tmp_path / "b", mocap, free, on_error="skip")
     assert result.counts["sequences"] == 1
-    skipped = VersionReader(tmp_path / "b").manifest["skipped"]
+    skipped = _VersionReader(tmp_path / "b").manifest["skipped"]
     assert skipped[0]["path"] == str(free) and "skeleton" in skipped[0]["error"]
 
     clip = read_bvh(mocap)  # the same rig at 60 fps
@@ -288,12 +288,12 @@ def test_append_keeps_the_parent_sequences(real_data: Path, tmp_path: Path) -> N
         assert v2[name].shape[0] == 455 + 90
         np.testing.assert_array_equal(v2[name][:455], v1[name])
         np.testing.assert_array_equal(v2[name][455:], v1[name][:90])
-    rows = VersionReader(store).table("sequences").to_pylist()
+    rows = _VersionReader(store).table("sequences").to_pylist()
     assert [(r["seq_id"], r["frame_start"], r["genre"]) for r in rows] == [
         ("test_mocapbank", 0, "gBR"),
         ("short", 455, "gPO"),
     ]
-    assert VersionReader(store).manifest["parent"] == "v1"
+    assert _VersionReader(store).manifest["parent"] == "v1"
     again = ingest(store, short, append=True, genre="gPO")  # already there: nothing to do
     assert (again.created, again.version) == (False, "v2")
     with pytest.raises(InputError, match="already in version v2"):
@@ -304,7 +304,7 @@ def test_append_keeps_the_parent_sequences(real_data: Path, tmp_path: Path) -> N
 
     # Without --append the new version holds only the given files.
     ingest(store, real_data / "bvh" / "test_freebvh.bvh")
-    assert [r["seq_id"] for r in VersionReader(store).table("sequences").to_pylist()] == [
+    assert [r["seq_id"] for r in _VersionReader(store).table("sequences").to_pylist()] == [
         "test_freebvh"
     ]
 
@@ -320,7 +320,7 @@ def test_music_pairing_then_featurize_and_segment(real_data: Path, tmp_path: Pat
     store = tmp_path / "store"
     run_cli("ingest", "bvh", str(mocap), "--store", str(store), "--music", str(snare),
             "--bpm", "120", "--genre", "gBR", "-q")  # fmt: skip
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     seq = reader.table("sequences").to_pylist()[0]
     music = reader.table("music").to_pylist()
     assert len(music) == 1 and seq["music_id"] == music[0]["music_id"] == "snare-accelerate"
@@ -329,7 +329,7 @@ def test_music_pairing_then_featurize_and_segment(real_data: Path, tmp_path: Pat
 
     featurize(store, FeaturizeOptions(motion=False))
     segment(store, SegmentOptions())
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     assert reader.group_attrs("audio")["sr"] == 30 * 512
     track = reader.table("music").to_pylist()[0]
     assert track["frame_stop"] - track["frame_start"] == pytest.approx(900, abs=2)
@@ -352,7 +352,7 @@ def test_manifest_pairs_many_files(real_data: Path, tmp_path: Path) -> None:
     csv.write_text(f"bvh,music,bpm,genre,split\na.bvh,{snare},100,gHO,train\nb.bvh,,90,gKR,test\n")
     store = tmp_path / "store"
     ingest(store, manifest=csv)
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     rows = {r["seq_id"]: r for r in reader.table("sequences").to_pylist()}
     assert rows["a"]["music_id"] == "snare-accelerate" and rows["b"]["music_id"] is None
     assert (rows["a"]["bpm"], rows["b"]["bpm"]) == (100.0, 90.0)

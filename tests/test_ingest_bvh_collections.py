@@ -21,7 +21,7 @@ import pytest
 from dancedata.io.bvh import BvhClip, BvhSkeleton, read_bvh, write_bvh
 from dancedata.io.bvh_ops import world_positions
 from dancedata.store.layout import StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import validate_store
 from tests.helpers import run_cli
 
@@ -142,7 +142,7 @@ def test_folder_is_searched_recursively_with_glob_and_files_still_work(tmp_path:
 
     store = tmp_path / "store"
     run_cli("ingest", "bvh", str(root), str(loose), "--store", str(store), "-q")
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     rows = reader.table("sequences").to_pylist()
     # sorted by path below the folder (a/deep/... before a/take1...), then the file given
     assert [r["seq_id"] for r in rows] == ["take2", "take1", "other3", "take9"]
@@ -152,7 +152,7 @@ def test_folder_is_searched_recursively_with_glob_and_files_still_work(tmp_path:
 
     only = tmp_path / "only"
     run_cli("ingest", "bvh", str(root), "--glob", "take*.bvh", "--store", str(only), "-q")
-    assert [r["seq_id"] for r in VersionReader(only).table("sequences").to_pylist()] == [
+    assert [r["seq_id"] for r in _VersionReader(only).table("sequences").to_pylist()] == [
         "take2",
         "take1",
     ]
@@ -186,7 +186,7 @@ def test_two_workers_write_the_same_bytes_as_one(tmp_path: Path) -> None:
     a, b = data_checksums(serial), data_checksums(parallel)
     data = [p for p in a if p.startswith("data.zarr/") or p.endswith(".parquet")]
     assert len(data) > 10 and {p: a[p] for p in data} == {p: b[p] for p in data}
-    counts = VersionReader(parallel).manifest["counts"]
+    counts = _VersionReader(parallel).manifest["counts"]
     assert counts["units"] == 2 and counts["sequences"] == 12
 
 
@@ -245,7 +245,7 @@ def _kill_and_resume(tmp_path: Path, workers: int) -> None:
 
     out = run_cli("ingest", "bvh", str(folder), "--store", str(store), *parallel).stdout
     assert "v1" in out
-    counts = VersionReader(store).manifest["counts"]
+    counts = _VersionReader(store).manifest["counts"]
     assert counts["units"] == 6 and 1 <= counts["resumed_units"] < 6, counts
     assert _same_data(store, reference)  # arrays and tables byte for byte
     assert validate_store(store) == [] and layout.temp_dirs() == []
@@ -271,7 +271,7 @@ def test_one_rig_with_position_channels_goes_into_one_store(tmp_path: Path) -> N
 
     store = tmp_path / "store"
     run_cli("ingest", "bvh", str(first), str(second), "--store", str(store), "-q")
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     assert [r["seq_id"] for r in reader.table("sequences").to_pylist()] == ["first", "second"]
     got = np.asarray(reader.array("motion/positions")[40:80], dtype=np.float64)
     assert np.abs(got - world_positions(read_bvh(second)) * 0.01).max() < 1e-5
@@ -316,7 +316,7 @@ def test_a_static_reference_root_is_not_measured(tmp_path: Path) -> None:
     )
     store = tmp_path / "store"
     run_cli("ingest", "bvh", str(path), "--store", str(store), "-q")
-    size = VersionReader(store).manifest["counts"]["files"]["ref"]["rig_size_m"]
+    size = _VersionReader(store).manifest["counts"]["files"]["ref"]["rig_size_m"]
     assert 1.5 < size < 2.0  # the body: head end to feet, not origin to the hips
 
 
@@ -385,7 +385,7 @@ def test_frames_present_reads_the_rows_the_block_holds(tmp_path: Path) -> None:
 
     store = tmp_path / "store"
     run_cli("ingest", "bvh", str(path), "--frames", "present", "--store", str(store), "-q")
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     assert reader.manifest["config"]["frames"] == "present"
     files = reader.manifest["counts"]["files"]["long"]
     assert files["source_frames"] == files["frames"] == 12 and files["declared_frames"] == 9
@@ -436,8 +436,8 @@ def test_export_after_featurize_writes_the_source_channels(
     store = tmp_path / "store"
     ingest_bvh(store, [source], BvhIngestOptions(units=repr(REAL_UNITS[name])))
     featurize(store, FeaturizeOptions(audio=False))
-    ingested = np.asarray(VersionReader(store, "v1").array("motion/euler")[:])
-    featurized = np.asarray(VersionReader(store, "v2").array("motion/euler")[:])
+    ingested = np.asarray(_VersionReader(store, "v1").array("motion/euler")[:])
+    featurized = np.asarray(_VersionReader(store, "v2").array("motion/euler")[:])
     assert featurized.tobytes() == ingested.tobytes()
     out = tmp_path / "out.bvh"
     assert export_bvh(store, name, out, BvhExportOptions()).angles_from == "euler"

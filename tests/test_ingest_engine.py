@@ -33,7 +33,7 @@ from dancedata.ingest.source import (
     StoredArray,
 )
 from dancedata.store.layout import StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import validate_store
 
 FPS = 30.0
@@ -118,7 +118,7 @@ def test_a_source_module_gets_a_whole_store(tmp_path: Path) -> None:
     result = ingest(store, source_named("test_points")(tmp_path / "in"))
     assert result.created and result.counts["sequences"] == 5 and result.counts["frames"] == 28
     assert result.counts["units"] == 3  # five files in read tasks of two
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     rows = reader.table("sequences").to_pylist()
     assert [r["frame_start"] for r in rows] == [0, 5, 12, 15, 24]
     assert [r["frame_stop"] - r["frame_start"] for r in rows] == [5, 7, 3, 9, 4]
@@ -141,7 +141,7 @@ def test_bad_input_fails_with_its_file_or_is_skipped(tmp_path: Path) -> None:
     result = ingest(tmp_path / "store", PointsSource(tmp_path / "in", on_error="skip"))
     assert result.counts["sequences"] == 2 and result.counts["frames"] == 12
     assert [s["path"] for s in result.skipped] == [str(tmp_path / "in" / "seq01.npy")]
-    rows = VersionReader(tmp_path / "store").table("sequences").to_pylist()
+    rows = _VersionReader(tmp_path / "store").table("sequences").to_pylist()
     assert [(r["seq_id"], r["frame_start"]) for r in rows] == [("seq00", 0), ("seq02", 5)]
 
 

@@ -23,7 +23,7 @@ from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.io.bvh import BvhClip, BvhSkeleton, write_bvh
 from dancedata.store.layout import StoreLayout
 from dancedata.store.lock import LOCK_FILE, StoreLock
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from tests import race_harness as race
@@ -223,11 +223,11 @@ def _ingest_bvh(store: Path, *paths: Path, append: bool = False) -> tuple[str, .
 
 
 def _seq_ids(store: Path, version: str | None = None) -> list[str]:
-    return VersionReader(store, version).table("sequences").column("seq_id").to_pylist()
+    return _VersionReader(store, version).table("sequences").column("seq_id").to_pylist()
 
 
 def _euler(store: Path, seq_id: str, version: str | None = None) -> np.ndarray:
-    reader = VersionReader(store, version)
+    reader = _VersionReader(store, version)
     rows = {r["seq_id"]: r for r in reader.table("sequences").to_pylist()}
     row = rows[seq_id]
     return np.asarray(reader.array("motion/euler")[row["frame_start"] : row["frame_stop"]])
@@ -266,8 +266,8 @@ def test_bvh_append_queued_behind_a_frozen_append_appends_to_its_result(
     out_first, out = _behind_frozen(first, tmp_path, *_ingest_bvh(store, files["b"], append=True))
     assert (out_first, out) == ("ingest bvh: wrote version v2\n", "ingest bvh: wrote version v3\n")
     assert _seq_ids(store) == ["base", "a", "b"]
-    assert VersionReader(store).manifest["parent"] == "v2"
-    assert VersionReader(store).manifest["counts"]["appended_to"] == "v2"
+    assert _VersionReader(store).manifest["parent"] == "v2"
+    assert _VersionReader(store).manifest["counts"]["appended_to"] == "v2"
     _settled(store)
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from dancedata.ingest.video import ingest_video
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from tests.helpers import run_cli
 from tests.test_ingest_video import RAGA, one_line_error, options, write_openpose
 
@@ -40,7 +40,7 @@ def test_raga_1person_without_its_video_equals_the_ingest_with_it(
         str(paired),
         "--no-music",
     )
-    a, b = VersionReader(alone), VersionReader(paired)
+    a, b = _VersionReader(alone), _VersionReader(paired)
     (row,) = a.table("sequences").to_pylist()
     assert row["seq_id"] == "video"  # the OpenPose file prefix (video_000000000000_keypoints...)
     assert row["n_frames"] == 125 and row["fps"] == 25.0 and row["video_frames"] == 125
@@ -66,7 +66,7 @@ def test_raga_3people_without_its_video_keeps_the_json_frames(
     folder = real_data / RAGA / "raga_example_3people" / "output_json"
     store = tmp_path / "store"
     ingest_json("--poses", str(folder), "--fps", "12.5", "--store", str(store))
-    (row,) = VersionReader(store).table("sequences").to_pylist()
+    (row,) = _VersionReader(store).table("sequences").to_pylist()
     assert row["n_frames"] == 125 and row["fps"] == 12.5 and row["drift_frames"] == 0
     assert row["tracked_person"] is not None and row["identity_switches"] is not None
 
@@ -92,7 +92,7 @@ def test_a_folder_of_pose_folders_gives_one_sequence_each(real_data: Path, tmp_p
         (root / name).symlink_to(real_data / RAGA / name / "output_json")
     store = tmp_path / "store"
     summary = ingest_json("--poses", str(root), "--fps", "25", "--store", str(store))
-    rows = VersionReader(store).table("sequences").to_pylist()
+    rows = _VersionReader(store).table("sequences").to_pylist()
     assert [r["seq_id"] for r in rows] == ["raga_example_1person", "raga_example_3people"]
     assert [r["n_frames"] for r in rows] == [125, 125]
     assert summary["counts"]["sequences"] == 2
@@ -106,7 +106,7 @@ def test_frames_numbered_from_file_names_with_gaps(tmp_path: Path) -> None:
     write_openpose(poses, 10.0, range(4), stem="take2")
     store = tmp_path / "store"
     result = ingest_video(store, [], options(poses=poses, fps=10.0, max_gap=0))
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     rows = {r["seq_id"]: r for r in reader.table("sequences").to_pylist()}
     assert rows["take1"]["n_frames"] == 7 and rows["take2"]["n_frames"] == 4
     pose2d = reader.array("motion/pose2d")[:]
@@ -123,7 +123,7 @@ def test_joints_csv_alone_with_fps(tmp_path: Path) -> None:
     csv.write_text("frame,Nose_x,Nose_y,Nose_z\n0,0,1,2\n1,0.5,1,2\n2,1,1,2\n")
     store = tmp_path / "store"
     ingest_video(store, [], options(joints_csv=csv, fps=2.0))
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     (row,) = reader.table("sequences").to_pylist()
     assert row["seq_id"] == "lifter" and row["n_frames"] == 3 and row["fps"] == 2.0
     np.testing.assert_allclose(reader.array("motion/positions")[:, 0, 0], [0.0, 0.5, 1.0])

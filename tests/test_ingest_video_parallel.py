@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from dancedata.store.layout import StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import validate_store
 from tests.helpers import run_cli
 from tests.test_ingest_video import one_line_error, snapshot, write_openpose, write_video
@@ -61,10 +61,10 @@ def test_two_workers_write_the_same_bytes_as_one(tmp_path: Path) -> None:
     assert same_data(serial, parallel)
     tables = [p for p in data_checksums(serial) if p.endswith(".parquet")]
     assert len(tables) == 2  # sequences and splits (no music)
-    a, b = VersionReader(serial).manifest, VersionReader(parallel).manifest
+    a, b = _VersionReader(serial).manifest, _VersionReader(parallel).manifest
     assert a["counts"] == b["counts"] and a["inputs"] == b["inputs"]
     assert a["counts"]["units"] == 4 and a["counts"]["sequences"] == 4  # one task per video
-    rows = VersionReader(parallel).table("sequences").to_pylist()
+    rows = _VersionReader(parallel).table("sequences").to_pylist()
     assert [r["frame_start"] for r in rows] == [0, 30, 61, 93]  # 30, 31, 32, 33 frames
 
 
@@ -101,7 +101,7 @@ def test_a_killed_ingest_resumes_with_the_videos_it_finished(tmp_path: Path, wor
 
     out = run_cli(*args).stdout
     assert "v1" in out
-    counts = VersionReader(store).manifest["counts"]
+    counts = _VersionReader(store).manifest["counts"]
     assert counts["units"] == 6 and 1 <= counts["resumed_units"] < 6, counts
     assert same_data(store, reference)
     assert validate_store(store) == [] and layout.temp_dirs() == []

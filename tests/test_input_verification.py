@@ -23,7 +23,7 @@ from dancedata.featurize.feature_cache import FeatureCache
 from dancedata.featurize.featurize import FeaturizeOptions, featurize
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.store.layout import StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.synth.aist import synth_aist
 from tests.helpers import REPO
 
@@ -82,7 +82,7 @@ def fresh(raw: Path, tmp_path: Path) -> dict[str, Path]:
     shutil.copytree(raw, copy)
     store = tmp_path / "store"
     ingest_aist(store, copy, AistIngestOptions())
-    music = VersionReader(store).table("music").to_pylist()[0]
+    music = _VersionReader(store).table("music").to_pylist()[0]
     return {"raw": copy, "store": store, "music": Path(music["path"]), "row": music}
 
 
@@ -100,7 +100,7 @@ def test_relative_inputs_are_recorded_absolute_and_found_from_elsewhere(
     shutil.copytree(raw, tmp_path / "raw")
     cli("ingest", "aist", "raw", "--store", "store", "-q", cwd=tmp_path)
     store = tmp_path / "store"
-    for row in VersionReader(store).table("music").to_pylist():
+    for row in _VersionReader(store).table("music").to_pylist():
         path = Path(row["path"])
         assert path.is_absolute() and path.parent == (tmp_path / "raw" / "wav").resolve()
         stat = path.stat()
@@ -109,7 +109,7 @@ def test_relative_inputs_are_recorded_absolute_and_found_from_elsewhere(
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     cli("featurize", str(store), "--stems", "none", "-q", cwd=elsewhere)
-    assert VersionReader(store).version == "v2"
+    assert _VersionReader(store).version == "v2"
 
 
 @pytest.mark.slow
@@ -131,7 +131,7 @@ def test_bvh_music_given_relative_is_recorded_absolute(tmp_path: Path) -> None:
         "-q",
         cwd=tmp_path,
     )
-    row = VersionReader(tmp_path / "s").table("music").to_pylist()[0]
+    row = _VersionReader(tmp_path / "s").table("music").to_pylist()[0]
     assert row["path"] == str((tmp_path / "song.flac").resolve())
     assert row["size_bytes"] == (tmp_path / "song.flac").stat().st_size
 
@@ -167,7 +167,7 @@ def test_touched_music_with_the_same_content_passes_and_gets_its_new_stamp(
     later = music.stat().st_mtime_ns + 5_000_000_000
     os.utime(music, ns=(later, later))
     result = featurize(store, fact_only())
-    row = VersionReader(store, result.version).table("music").to_pylist()[0]
+    row = _VersionReader(store, result.version).table("music").to_pylist()[0]
     assert row["mtime_ns"] == later and row["sha256"] == fresh["row"]["sha256"]
     assert "music_accepted_changes" not in StoreLayout(store).read_manifest("v2")["config"]
 
@@ -194,7 +194,7 @@ def test_accept_changed_music_rehashes_and_records_it(
     y, sr = sf.read(music, dtype="float32")
     sf.write(music, np.concatenate([y, y[: sr * 2]]), sr, subtype=sf.info(music).subtype)
     result = featurize(store, fact_only(accept_changed_music=True, cache_dir=str(tmp_path / "c")))
-    reader = VersionReader(store, result.version)
+    reader = _VersionReader(store, result.version)
     row = next(r for r in reader.table("music").to_pylist() if r["music_id"] == music.stem)
     stat = music.stat()
     assert row["sha256"] == sha256(music) != fresh["row"]["sha256"]
@@ -227,7 +227,7 @@ def test_cache_never_holds_new_content_under_the_old_hash(
     other = tmp_path / "store_b"
     ingest_aist(other, fresh["raw"], AistIngestOptions(music_dir=old_copy))
     result = featurize(other, fact_only(cache_dir=str(cache_dir)))
-    reader = VersionReader(other, result.version)
+    reader = _VersionReader(other, result.version)
     row = next(r for r in reader.table("music").to_pylist() if r["music_id"] == music.stem)
     assert row["sha256"] == old_sha
     stored = np.asarray(reader.array("audio/onset_env")[row["frame_start"] : row["frame_stop"]])

@@ -12,7 +12,7 @@ import pytest
 from dancedata.ingest.video import ingest_video
 from dancedata.ingest.video.poses import SKELETONS, skeleton_for_joints
 from dancedata.io.joint_sets import H36M_17, HMR_19, LIFTER_SETS, SPIN_24
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from tests.test_ingest_video import options
 
 
@@ -83,7 +83,7 @@ def test_ingest_stores_the_lifter_skeleton(tmp_path, name):
     values = _write(csv, joint_set.spellings()[-1])
     store = tmp_path / "store"
     ingest_video(store, [], options(joints_csv=csv, fps=30.0))
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     skeleton = reader.group_attrs("motion")["skeleton"]
     assert reader.array("motion/positions").attrs["skeleton"] == skeleton
     assert skeleton["name"] == name and skeleton["parents"] == list(joint_set.parents)
@@ -95,5 +95,7 @@ def test_headerless_csv_takes_the_named_set(tmp_path):
     values = _write(csv, H36M_17.joints, header=False)
     store = tmp_path / "store"
     ingest_video(store, [], options(joints_csv=csv, fps=30.0, skeleton="h36m17"))
-    np.testing.assert_allclose(VersionReader(store).array("motion/positions")[:], values, atol=1e-6)
+    np.testing.assert_allclose(
+        _VersionReader(store).array("motion/positions")[:], values, atol=1e-6
+    )
     assert {"body25", "coco18", "h36m17", "spin24", "hmr19"} <= set(SKELETONS)

@@ -433,12 +433,12 @@ def test_non_finite_motion_or_curves_are_one_line_errors(small_store: Path, tmp_
 
     import zarr
 
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
     from dancedata.study.keyframes import KeyframesOptions, keyframes
 
     store = tmp_path / "damaged"
     shutil.copytree(small_store, store)  # a real copy: the fixture's files stay as they are
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     seq = reader.table("sequences").to_pylist()[1]
     data = zarr.open_group(str(reader.path / "data.zarr"), mode="r+")
     euler = data["motion/euler"]

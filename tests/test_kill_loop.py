@@ -46,7 +46,7 @@ from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.store.checksums import sha256_file
 from dancedata.store.layout import StoreLayout
 from dancedata.store.lock import LOCK_FILE
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from tests.helpers import REPO
@@ -100,7 +100,7 @@ def _finished_units(log_text: str) -> dict[str, int]:
 
 def _version_data(store: Path, version: str) -> dict[str, Any]:
     """Every array (raw chunk bytes and decoded values) and table of one version."""
-    reader = VersionReader(store, version)
+    reader = _VersionReader(store, version)
     out: dict[str, Any] = {}
     zarr_dir = reader.path / "data.zarr"
     for name in reader.array_names():

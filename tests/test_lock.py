@@ -259,10 +259,10 @@ _COMMIT_LOOP = textwrap.dedent(
     import sys
     from dancedata.store.contract import build_table
     from dancedata.store.layout import StoreLayout
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.reader import _VersionReader
     from dancedata.store.writer import VersionWriter
     store, n = sys.argv[1], int(sys.argv[2])
-    seqs = VersionReader(store).table("sequences").to_pylist()
+    seqs = _VersionReader(store).table("sequences").to_pylist()
     for i in range(n):
         rows = [
             {"seq_id": s["seq_id"], "measure": 0, "frame_start": 0, "frame_stop": 1 + i,

@@ -26,7 +26,7 @@ from dancedata.ingest.video import VideoIngestOptions, ingest_video
 from dancedata.ingest.video.poses import PoseSettings
 from dancedata.io.bvh import BvhClip, read_bvh, write_bvh
 from dancedata.io.smpl_model import load_smpl_model
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
 
@@ -107,7 +107,7 @@ def one_line_error(proc) -> str:
     return lines[0]
 
 
-def sequence_bounds(reader: VersionReader) -> list[tuple[int, int]]:
+def sequence_bounds(reader: _VersionReader) -> list[tuple[int, int]]:
     rows = reader.table("sequences").to_pylist()
     return [(r["frame_start"], r["frame_stop"]) for r in rows]
 
@@ -180,14 +180,14 @@ def test_smpl_positions_through_featurize(tmp_path: Path) -> None:
     # Without a model: the built-in edge_smpl_offsets skeleton, named in the manifest and attrs
     # (tests/test_smpl_skeleton.py checks its numbers).
     featurize_cli(store, "positions")
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     config = reader.manifest["config"]["motion_families"]["positions"]
     assert config["skeleton"] == "edge_smpl_offsets" and config["smpl_model"] is None
     assert reader.array("motion/positions").attrs["smpl_skeleton"] == "edge_smpl_offsets"
     builtin_fingerprint = reader.manifest["fingerprint"]
 
     featurize_cli(store, "positions,angular", "--smpl-model", str(model))
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     positions = np.asarray(reader.array("motion/positions")[:], dtype=np.float64)
     axis_angle = np.asarray(reader.array("motion/axis_angle")[:], dtype=np.float64)
     trans = np.asarray(reader.array("motion/trans")[:], dtype=np.float64)
@@ -200,7 +200,7 @@ def test_smpl_positions_through_featurize(tmp_path: Path) -> None:
 
     # Positions now exist: kinematics and geometric run on this version's output.
     featurize(store, "kinematics,geometric")
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     assert reader.manifest["counts"]["motion_absent"] == {}
     geometric = np.asarray(reader.array("motion/geometric_features")[:])
     kinetic = np.asarray(reader.array("motion/kinetic_features")[:])
@@ -228,9 +228,9 @@ def test_positions_family_refuses_rigs_with_joint_translations(real_data: Path, 
 def test_bvh_positions_family_rebuilds_ingest_positions(real_data: Path, tmp_path) -> None:
     store = tmp_path / "mocap"
     ingest(store, real_data / "bvh" / "test_mocapbank.bvh")
-    before = np.asarray(VersionReader(store).array("motion/positions")[:])
+    before = np.asarray(_VersionReader(store).array("motion/positions")[:])
     featurize(store, "positions")
-    after = np.asarray(VersionReader(store).array("motion/positions")[:])
+    after = np.asarray(_VersionReader(store).array("motion/positions")[:])
     assert np.abs(after - before).max() < 5e-6  # FK of float32 axis-angle vs of the channels
 
 
@@ -269,7 +269,7 @@ def test_kinematics_and_angular_on_a_bvh_store(real_data: Path, tmp_path: Path) 
     line = one_line_error(featurize_cli(store, "rotations,kinematics,geometric", check=False))
     assert "SMPL-24" in line
     featurize(store, "rotations,kinematics,angular")
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     fps = reader.group_attrs("motion")["fps"]
     assert fps == 30.0
     p = np.asarray(reader.array("motion/positions")[:], dtype=np.float64)
@@ -336,7 +336,7 @@ def test_video_store_with_positions_only(tmp_path: Path) -> None:
     ingest_video(store, [video], video_options)
 
     featurize(store, "rotations,kinematics,angular")
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     absent = reader.manifest["counts"]["motion_absent"]
     assert set(absent) == {"rotations", "angular"} and "axis_angle" in absent["angular"]
     velocity = np.asarray(reader.array("motion/velocity")[:])

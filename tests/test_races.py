@@ -17,7 +17,7 @@ import pytest
 
 from dancedata.store.layout import StoreLayout
 from dancedata.store.lock import LOCK_FILE
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 from tests import race_harness as race
@@ -76,7 +76,7 @@ def test_segment_waiting_behind_featurize_keeps_the_features(frozen_featurize, s
     assert "wrote version v3" in out
     layout = StoreLayout(store)
     assert layout.latest() == "v3"
-    latest = VersionReader(store)
+    latest = _VersionReader(store)
     # The segment version derives from the featurize result, not from v1 as planned earlier.
     assert latest.manifest["parent"] == "v2"
     assert set(latest.manifest["stages"]) == {"ingest", "featurize", "segment"}

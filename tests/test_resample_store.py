@@ -49,7 +49,7 @@ from dancedata.compute.rotations import (
 )
 from dancedata.errors import InputError
 from dancedata.featurize.resample_store import ResampleOptions, check_fps, resample
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from tests.helpers import run_cli
 
 # -- pure functions ---------------------------------------------------------------------------
@@ -174,7 +174,7 @@ def _second_difference_bounds(values: np.ndarray, rotations: bool) -> np.ndarray
 def _round_trip_errors(store, v60: str, v20: str, vrt: str) -> dict[str, np.ndarray]:
     """Check frame counts and exact kept frames; return rotation / translation errors and
     their bounds on the interpolated frames."""
-    r60, r20, rrt = (VersionReader(store, v) for v in (v60, v20, vrt))
+    r60, r20, rrt = (_VersionReader(store, v) for v in (v60, v20, vrt))
     s60, s20, srt = (r.table("sequences").to_pylist() for r in (r60, r20, rrt))
     assert r20.group_attrs("motion")["fps"] == 20.0 and rrt.group_attrs("motion")["fps"] == 60.0
     out: dict[str, list[np.ndarray]] = {"rot": [], "rot_bound": [], "trans": [], "trans_bound": []}
@@ -228,7 +228,7 @@ def test_round_trip_on_the_synthetic_store(synth_store) -> None:
     assert (errors["rot"] <= 1.05 * errors["rot_bound"] + 1e-5).all()
     assert errors["rot"].max() > 1e-3  # the interpolated frames really are interpolated
     assert (errors["trans"] <= errors["trans_bound"] + 1e-6).all()
-    manifest = VersionReader(store, "v3").manifest
+    manifest = _VersionReader(store, "v3").manifest
     config = manifest["config"]
     assert manifest["command"] == "resample" and manifest["parent"] == "v2"
     assert config["source_fps"] == 60.0 and config["target_fps"] == 20.0
@@ -251,7 +251,7 @@ def test_round_trip_on_the_synthetic_store(synth_store) -> None:
 @pytest.mark.slow
 def test_tables_follow_the_new_rate(synth_store) -> None:
     _, store = synth_store
-    r60, r20 = VersionReader(store, "v2"), VersionReader(store, "v3")
+    r60, r20 = _VersionReader(store, "v2"), _VersionReader(store, "v3")
     seqs = {s["seq_id"]: s for s in r20.table("sequences").to_pylist()}
     music = {m["music_id"]: m for m in r20.table("music").to_pylist()}
     for m60 in r60.table("music").to_pylist():
@@ -294,7 +294,7 @@ def test_featurize_and_segment_work_on_the_resampled_store(synth_store, tmp_path
     shutil.copytree(store, copy)
     run_cli("featurize", str(copy), "--version", "v3", "--audio-families", "fact", "-q")
     run_cli("segment", str(copy), "--tables", "measures,beats", "-q")
-    latest = VersionReader(copy)
+    latest = _VersionReader(copy)
     assert latest.group_attrs("audio")["fps"] == 20.0 and latest.group_attrs("audio")["sr"] == 10240
     music = latest.table("music").to_pylist()
     assert latest.array("audio/onset_env").shape[0] == music[-1]["frame_stop"]
@@ -317,11 +317,11 @@ def test_audio_features_are_recomputed_at_the_new_rate(synth_store, tmp_path) ->
     run_cli("featurize", str(copy), "--version", "v1", "--audio-families", "fact", "-q")  # v5
     out = json.loads(run_cli("resample", str(copy), "--fps", "20", "--json", "-q").stdout)
     mid, last = out["counts"]["resample_version"], out["version"]
-    assert VersionReader(copy, last).manifest["parent"] == mid
-    resampled = VersionReader(copy, mid)
+    assert _VersionReader(copy, last).manifest["parent"] == mid
+    resampled = _VersionReader(copy, mid)
     assert not [n for n in resampled.array_names() if n.startswith("audio/")]
     assert resampled.manifest["config"]["audio"]["recompute_families"] == ["fact"]
-    final = VersionReader(copy, last)
+    final = _VersionReader(copy, last)
     assert final.group_attrs("audio")["fps"] == 20.0
     direct = json.loads(
         run_cli(
@@ -338,7 +338,7 @@ def test_audio_features_are_recomputed_at_the_new_rate(synth_store, tmp_path) ->
     )
     for name in ("audio/onset_env", "audio/mfcc", "audio/beats"):
         np.testing.assert_array_equal(
-            final.array(name)[:], VersionReader(copy, direct["version"]).array(name)[:]
+            final.array(name)[:], _VersionReader(copy, direct["version"]).array(name)[:]
         )
     assert final.manifest["config"]["audio"]["sr"] == 10240
     assert run_cli("validate", str(copy), "--version", last).returncode == 0
@@ -354,8 +354,9 @@ def test_ingest_aist_fps(synth_store, tmp_path) -> None:
         ).stdout
     )
     assert result["version"] == "v2" and result["counts"]["ingest_version"] == "v1"
-    direct = VersionReader(store, "v3")  # resample of the same ingest (+ segment: no motion change)
-    got = VersionReader(out, "v2")
+    # resample of the same ingest (+ segment: no motion change)
+    direct = _VersionReader(store, "v3")
+    got = _VersionReader(out, "v2")
     for name in ("motion/axis_angle", "motion/trans", "motion/keypoints3d"):
         np.testing.assert_array_equal(got.array(name)[:], direct.array(name)[:])
     assert got.manifest["config"]["target_fps"] == 20.0
@@ -412,7 +413,7 @@ def test_music_only_store(synth_store, tmp_path) -> None:
     run_cli("ingest", "music", *wavs, "--store", str(store), "--bpm", "120", "-q")
     run_cli("featurize", str(store), "--audio-families", "fact", "-q")
     out = json.loads(run_cli("resample", str(store), "--fps", "20", "--json", "-q").stdout)
-    final = VersionReader(store, out["version"])
+    final = _VersionReader(store, out["version"])
     music = {m["music_id"]: m for m in final.table("music").to_pylist()}
     for seq in final.table("sequences").to_pylist():
         m = music[seq["music_id"]]
@@ -433,10 +434,10 @@ def test_windowed_motion_features_are_recomputed(synth_store, tmp_path) -> None:
     run_cli("ingest", "aist", str(raw), "--store", str(store), "-q")
     run_cli("featurize", str(store), "--motion-families", "positions,laban", "--no-audio", "-q")
     out = json.loads(run_cli("resample", str(store), "--fps", "20", "--json", "-q").stdout)
-    mid = VersionReader(store, out["counts"]["resample_version"])
+    mid = _VersionReader(store, out["counts"]["resample_version"])
     assert not mid.has_array("motion/laban_time")
     assert mid.manifest["config"]["recompute_motion_families"] == ["laban"]
-    final = VersionReader(store, out["version"])
+    final = _VersionReader(store, out["version"])
     n = final.table("sequences").to_pylist()[-1]["frame_stop"]
     assert final.array("motion/laban_time").shape[0] == n
     assert final.manifest["command"] == "featurize"

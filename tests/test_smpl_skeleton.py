@@ -24,7 +24,7 @@ from dancedata.compute.smpl_skeleton import (
 )
 from dancedata.errors import InputError
 from dancedata.io.smpl_skeletons import skeleton_name, smpl_skeleton
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from tests.helpers import run_cli
 
 
@@ -131,7 +131,7 @@ def test_featurize_positions_without_a_model_on_a_real_aist_store(
     run_cli("ingest", "aist", str(real_data / "aist"), "--store", str(store),
             "--allow-missing-music", "-q")  # fmt: skip
     run_cli("featurize", str(store), "--motion-families", "positions", "--no-audio", "-q")
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     config = reader.manifest["config"]["motion_families"]["positions"]
     assert config["skeleton"] == "edge_smpl_offsets" and config["smpl_model"] is None
     positions = reader.array("motion/positions")

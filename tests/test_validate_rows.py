@@ -13,7 +13,7 @@ import zarr
 
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.store.arrays import FrameArrayWriter
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import nonfinite_rows, validate_store
 from dancedata.store.writer import VersionWriter
 from dancedata.synth.aist import synth_aist
@@ -87,7 +87,7 @@ def store(ingested, tmp_path) -> Path:
 
 def _commit_with(store: Path, name: str, values: np.ndarray, attrs: dict | None = None) -> str:
     """Commit a child of the latest version holding one more float array (real writer)."""
-    parent = VersionReader(store)
+    parent = _VersionReader(store)
     with VersionWriter(
         store,
         command="test",
@@ -108,7 +108,7 @@ def _commit_with(store: Path, name: str, values: np.ndarray, attrs: dict | None 
 def test_nan_in_the_last_row_of_positions_is_found(store):
     """Positions were left out, and only 4096 rows were sampled: the last row of a long array
     went unchecked."""
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     frames = reader.array("motion/trans").shape[0]
     joints = reader.array("motion/axis_angle").shape[1]
     assert frames > 1

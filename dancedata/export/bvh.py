@@ -51,7 +51,8 @@ from dancedata.io.bvh import (
 from dancedata.io.bvh_attrs import is_bvh_skeleton, skeleton_from_attrs
 from dancedata.io.bvh_ops import clip_from_rotations
 from dancedata.read.sequence_reader import known_ids
-from dancedata.store.reader import VersionReader
+from dancedata.store.backend import StoreBackend
+from dancedata.store.reader import _VersionReader
 
 __all__ = ["BvhExportOptions", "BvhExportResult", "export_bvh", "sequence_clip"]
 
@@ -103,7 +104,7 @@ class BvhExportResult:
         return {k: v for k, v in self.__dict__.items() if k != "skipped"}
 
 
-def _sequence_row(reader: VersionReader, seq_id: str) -> dict[str, Any]:
+def _sequence_row(reader: _VersionReader, seq_id: str) -> dict[str, Any]:
     rows = reader.table("sequences").to_pylist()
     for row in rows:
         if row["seq_id"] == seq_id:
@@ -123,7 +124,7 @@ def _units(name: str) -> tuple[str, float]:
 
 
 def _original_clip(
-    reader: VersionReader, skel_attrs: dict[str, Any], f0: int, f1: int, frame_time: float
+    reader: _VersionReader, skel_attrs: dict[str, Any], f0: int, f1: int, frame_time: float
 ) -> tuple[BvhClip, str]:
     """The clip (metres) in the file's own layout, and which array gave the angles."""
     skel = skeleton_from_attrs(skel_attrs)
@@ -142,12 +143,12 @@ def _original_clip(
     return clip_from_rotations(skel, frame_time, rotmats, translations), "axis_angle"
 
 
-def _orders(reader: VersionReader) -> list[str] | None:
+def _orders(reader: _VersionReader) -> list[str] | None:
     order = reader.array("motion/euler").attrs.get("order")
     return list(order) if isinstance(order, list) else None
 
 
-def _array(reader: VersionReader, name: str, f0: int, f1: int) -> np.ndarray:
+def _array(reader: _VersionReader, name: str, f0: int, f1: int) -> np.ndarray:
     if not reader.has_array(f"motion/{name}"):
         raise StoreError(
             f"version {reader.version} has no motion/{name}; BVH export needs joint rotations "
@@ -187,7 +188,7 @@ def _rest_offsets(
 
 
 def _generated_clip(
-    reader: VersionReader,
+    reader: _VersionReader,
     skel_attrs: dict[str, Any],
     f0: int,
     f1: int,
@@ -223,14 +224,14 @@ def _generated_clip(
 
 
 def sequence_clip(
-    store: str | Path, seq_id: str, options: BvhExportOptions | None = None
+    store: str | Path | StoreBackend, seq_id: str, options: BvhExportOptions | None = None
 ) -> tuple[BvhClip, BvhExportResult]:
     """The BVH clip (in the output unit) of one stored sequence, and a description of it."""
     options = options or BvhExportOptions()
     order = options.rotation_order.upper()
     if len(order) != 3 or sorted(order) != ["X", "Y", "Z"]:
         raise InputError(f"--rotation-order must be a permutation of XYZ, not {order!r}")
-    reader = VersionReader(store, options.version)
+    reader = _VersionReader(store, options.version)
     row = _sequence_row(reader, seq_id)
     f0, f1 = int(row["frame_start"]), int(row["frame_stop"])
     attrs = reader.group_attrs("motion")
@@ -271,7 +272,10 @@ def sequence_clip(
 
 
 def export_bvh(
-    store: str | Path, seq_id: str, out: str | Path, options: BvhExportOptions | None = None
+    store: str | Path | StoreBackend,
+    seq_id: str,
+    out: str | Path,
+    options: BvhExportOptions | None = None,
 ) -> BvhExportResult:
     """Write sequence ``seq_id`` of ``store`` to the BVH file ``out`` (atomically)."""
     options = options or BvhExportOptions()

@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import os
 from dataclasses import MISSING, Field, dataclass, field, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from dancedata.compute.stems import StemBackend
 
 __all__ = [
     "STEM_CHOICES",
@@ -124,6 +127,15 @@ class AudioSettings:
     tempogram_frames: int = setting(
         384, help="Tempogram window in feature frames (384 → 6.4 s at 60 fps).", min=2
     )
+
+    @property
+    def stem_backend(self) -> StemBackend:
+        """The backend object ``stems`` names, chosen from the registry of
+        :mod:`dancedata.compute.stems`; the stem families ask it what it needs rather than
+        comparing names. InputError for ``none`` or an unknown name."""
+        from dancedata.compute.stems import stem_backend
+
+        return stem_backend(self.stems)
 
 
 @dataclass(frozen=True)

@@ -55,12 +55,13 @@ from dancedata.featurize.tasks import (
 )
 from dancedata.io.smpl_model import SMPL_MODEL_ENV
 from dancedata.store.arrays import CHUNK_FRAMES, FrameArrayWriter, create_checked_array
+from dancedata.store.backend import StoreBackend
 from dancedata.store.backend_open import make_backend
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.layout import StoreLayout, warn_once
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.writer import (
     VersionWriter,
     already_done,
@@ -181,19 +182,20 @@ def _validate(options: FeaturizeOptions) -> None:
         ) from None
 
 
-def featurize(store: str | Path, options: FeaturizeOptions) -> CommandResult:
+def featurize(store: str | Path | StoreBackend, options: FeaturizeOptions) -> CommandResult:
     """Compute the requested features from ``options.version`` (default latest) of ``store``."""
     _validate(options)
+    handle = make_backend(store)  # resolved once: lock, reader, writer and tasks share it
     # Parent, fingerprint and the "already done" check are read under the lock: a run that
     # waited behind another writer derives from (or finds) that writer's result.
-    with hold_store_lock(store, wait=options.wait_for_lock) as lock:
-        return _featurize_locked(store, options, lock)
+    with hold_store_lock(handle, wait=options.wait_for_lock) as lock:
+        return _featurize_locked(handle, options, lock)
 
 
-def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -> CommandResult:
+def _featurize_locked(store: StoreBackend, options: FeaturizeOptions, lock: Any) -> CommandResult:
     layout = StoreLayout(store)
     parent = layout.resolve(options.version)
-    reader = VersionReader(store, parent)
+    reader = _VersionReader(layout, parent)
     motion_attrs = reader.group_attrs("motion")
     fps = float(motion_attrs.get("fps", 60.0))
     if options.euler_order is None:
@@ -303,7 +305,11 @@ def _featurize_locked(store: str | Path, options: FeaturizeOptions, lock: Any) -
 
 
 def check_work(
-    options: FeaturizeOptions, motion: bool, audio: bool, music: bool, store: str | Path
+    options: FeaturizeOptions,
+    motion: bool,
+    audio: bool,
+    music: bool,
+    store: str | Path | StoreBackend,
 ) -> None:
     """Loud, not empty: a StoreError (nothing written) when this run would compute no array
     (``motion``/``audio``: arrays planned; ``music``: the store has tracks), and a one-line
@@ -331,7 +337,7 @@ def check_work(
 
 
 def _music_inputs(
-    reader: VersionReader, cfg: AudioFeatureConfig, options: FeaturizeOptions
+    reader: _VersionReader, cfg: AudioFeatureConfig, options: FeaturizeOptions
 ) -> MusicInputs:
     """The parent's music rows, each file verified against what ingest recorded and its decoded
     span planned and limited (none when audio is off)."""
@@ -346,9 +352,10 @@ def _music_inputs(
     )
 
 
-def _store_id(store: str | Path) -> str:
-    """The store as workers must name it: a URL, or an absolute local path."""
-    return make_backend(store).locator()
+def _store_id(store: StoreBackend) -> str:
+    """The store as workers must name it (they reopen it from this string): a URL, or an
+    absolute local path."""
+    return store.locator()
 
 
 def _prepare(
@@ -391,7 +398,7 @@ class MotionPlan:
 
 
 def _plan_motion(
-    reader: VersionReader, options: FeaturizeOptions, n_joints: int, settings: MotionSettings
+    reader: _VersionReader, options: FeaturizeOptions, n_joints: int, settings: MotionSettings
 ) -> MotionPlan:
     if not options.motion:
         return MotionPlan([], [], [], (), ())
@@ -418,13 +425,13 @@ def _plan_motion(
     return MotionPlan(runnable, absent, specs, tuple(sorted(needed)), tuple(sorted(handed_on)))
 
 
-def _skeleton_joints(reader: VersionReader) -> int:
+def _skeleton_joints(reader: _VersionReader) -> int:
     skeleton = reader.group_attrs("motion").get("skeleton") or {}
     return len(skeleton.get("joints", []))
 
 
 def _pack_audio(
-    reader: VersionReader,
+    reader: _VersionReader,
     version: VersionWriter,
     cfg: AudioFeatureConfig,
     job: AudioJob,
@@ -475,7 +482,7 @@ def _pack_audio(
 
 
 def _update_sequence_audio_frames(
-    reader: VersionReader, version: VersionWriter, music: list[dict[str, Any]]
+    reader: _VersionReader, version: VersionWriter, music: list[dict[str, Any]]
 ) -> None:
     """Recompute each sequence's usable audio frames from the actual feature lengths."""
     track_frames = {m["music_id"]: m["frame_stop"] - m["frame_start"] for m in music}

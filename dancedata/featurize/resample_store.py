@@ -39,10 +39,12 @@ from dancedata.errors import InputError
 from dancedata.featurize.segment import SegmentOptions, beat_rows, measure_rows, phrase_rows
 from dancedata.io.audio import feature_frames, resampled_length
 from dancedata.store.arrays import FrameArrayWriter
+from dancedata.store.backend import StoreBackend
+from dancedata.store.backend_open import make_backend
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.layout import warn_once
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.version_step import DerivedVersion, derive_version
 from dancedata.store.writer import base_fingerprint
 
@@ -87,13 +89,14 @@ def check_fps(fps: Any, what: str = "--fps") -> float:
     return value
 
 
-def resample(store: str | Path, options: ResampleOptions) -> CommandResult:
+def resample(store: str | Path | StoreBackend, options: ResampleOptions) -> CommandResult:
     """Write ``options.version`` (default: the latest) at ``options.fps`` as a new version;
     then, when the parent had audio features or windowed motion features, recompute them with
     featurize at the new rate (one more version; the result names the last one and, under
     ``counts["resample_version"]``, the resampled one)."""
     fps = check_fps(options.fps)
-    with derive_version(store, "resample", options.version, options.wait_for_lock) as step:
+    handle = make_backend(store)  # resolved once: the resample step and the featurize share it
+    with derive_version(handle, "resample", options.version, options.wait_for_lock) as step:
         result, todo = _resample_step(step, fps)
     if options.featurize and todo["settings_differ"]:
         warn_once(
@@ -105,7 +108,7 @@ def resample(store: str | Path, options: ResampleOptions) -> CommandResult:
     from dancedata.featurize.featurize import FeaturizeOptions, featurize
 
     feat = featurize(
-        store,
+        handle,
         FeaturizeOptions(
             motion=bool(todo["motion_families"]),
             motion_families=todo["motion_families"],
@@ -132,7 +135,7 @@ def resample_version(store: str | Path, fps: float, version: str | None = None) 
     return resample(store, ResampleOptions(fps=fps, version=version, featurize=False))
 
 
-def _source_fps(reader: VersionReader, sequences: list[dict[str, Any]]) -> float:
+def _source_fps(reader: _VersionReader, sequences: list[dict[str, Any]]) -> float:
     attrs_fps = reader.group_attrs("motion").get("fps")
     rates = {float(s["fps"]) for s in sequences}
     if len(rates) > 1:
@@ -147,11 +150,11 @@ def _source_fps(reader: VersionReader, sequences: list[dict[str, Any]]) -> float
 
 
 def _last_config(
-    store: str | Path, reader: VersionReader, command: str, key: str | None = None
+    store: str | Path, reader: _VersionReader, command: str, key: str | None = None
 ) -> dict[str, Any] | None:
     """The config of the newest ``command`` run in the version's history (walking parents;
     with ``key``, the newest whose config has a truthy ``key``)."""
-    current: VersionReader | None = reader
+    current: _VersionReader | None = reader
     for _ in range(_MAX_CHAIN):
         if current is None:
             return None
@@ -160,17 +163,17 @@ def _last_config(
         if manifest.get("command") == command and (key is None or config.get(key)):
             return dict(config)
         parent = manifest.get("parent")
-        current = VersionReader(store, parent) if parent else None
+        current = _VersionReader(store, parent) if parent else None
     return None
 
 
-def _segment_config(store: str | Path, reader: VersionReader) -> dict[str, Any] | None:
+def _segment_config(store: str | Path, reader: _VersionReader) -> dict[str, Any] | None:
     """The config of the ``segment`` run that wrote the version's measures."""
     return _last_config(store, reader, "segment")
 
 
 def _feature_families(
-    store: str | Path, reader: VersionReader, left_out: list[str]
+    store: str | Path, reader: _VersionReader, left_out: list[str]
 ) -> dict[str, Any]:
     """What featurize must recompute at the new rate: the audio families of the parent (its
     audio group's ``families``), the motion families whose outputs were left out, and the
@@ -331,7 +334,7 @@ def _sequence_rows(
 
 
 def _music_rows(
-    reader: VersionReader, cfg: AudioFeatureConfig
+    reader: _VersionReader, cfg: AudioFeatureConfig
 ) -> tuple[list[dict[str, Any]] | None, dict[str, int]]:
     """The music table with each track's feature frame range at the new rate."""
     if not reader.has_table("music"):
@@ -414,7 +417,7 @@ def _euler_order(attrs: dict[str, Any]) -> str | list[str] | None:
 
 
 def _write_motion(
-    reader: VersionReader,
+    reader: _VersionReader,
     group: Any,
     names: list[str],
     rules: dict[str, str],

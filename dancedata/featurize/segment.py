@@ -12,6 +12,7 @@ from dancedata.compute.beat_units import beat_grid, phrase_bounds
 from dancedata.compute.downbeat import method_config
 from dancedata.compute.measures import measure_grid
 from dancedata.errors import InputError, StoreError
+from dancedata.store.backend import StoreBackend
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
 from dancedata.store.layout import warn_once
@@ -192,7 +193,7 @@ def check_measures(sequences: list[dict[str, Any]], rows: list[dict[str, Any]], 
         )
 
 
-def segment(store: str | Path, options: SegmentOptions) -> CommandResult:
+def segment(store: str | Path | StoreBackend, options: SegmentOptions) -> CommandResult:
     """Write the measures table as a new version derived from ``options.version`` (default:
     the latest version, as it is once this writer holds the store lock)."""
     if options.beats_per_measure < 1:

@@ -17,13 +17,13 @@ from dancedata.compute.downbeat import estimate_downbeat, sequence_phase
 from dancedata.compute.measures import frames_per_measure
 from dancedata.errors import StoreError
 from dancedata.store.layout import warn_once
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 
 REQUIRED_ARRAYS = ("audio/onset_env", "audio/beats")
 
 
 def downbeat_phases(
-    reader: VersionReader, sequences: list[dict[str, Any]], beats_per_measure: int
+    reader: _VersionReader, sequences: list[dict[str, Any]], beats_per_measure: int
 ) -> tuple[dict[str, float], dict[str, dict[str, Any]]]:
     """(phase in frames per seq_id, estimate per music_id) for the sequences with a BPM.
 

@@ -22,9 +22,10 @@ import numpy as np
 
 from dancedata.compute.normalization import STD_FLOOR, Moments
 from dancedata.errors import InputError
-from dancedata.read.sequence_reader import SequenceReader
+from dancedata.read.sequence_reader import _SequenceReader
+from dancedata.store.backend import StoreBackend
 from dancedata.store.command_result import CommandResult
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.version_step import DerivedVersion, derive_version
 
 __all__ = ["DEFAULT_ARRAYS", "StatsOptions", "stats"]
@@ -56,7 +57,7 @@ class StatsOptions:
     wait_for_lock: bool = False
 
 
-def _row_weights(seq: SequenceReader, seq_ids: list[str], group: str, n_rows: int) -> np.ndarray:
+def _row_weights(seq: _SequenceReader, seq_ids: list[str], group: str, n_rows: int) -> np.ndarray:
     """How many times each global row of a ``group`` array counts: once per split sequence
     covering it (motion: its frames; audio: its aligned audio frames)."""
     weights = np.zeros(n_rows + 1, dtype=np.int64)
@@ -78,7 +79,7 @@ def _row_weights(seq: SequenceReader, seq_ids: list[str], group: str, n_rows: in
     return np.cumsum(weights)[:n_rows]
 
 
-def _array_moments(reader: VersionReader, name: str, weights: np.ndarray) -> Moments:
+def _array_moments(reader: _VersionReader, name: str, weights: np.ndarray) -> Moments:
     array = reader.array(name)
     chunk = int(array.chunks[0]) or 1
     block = max(chunk, BLOCK_ROWS // chunk * chunk)
@@ -94,7 +95,7 @@ def _array_moments(reader: VersionReader, name: str, weights: np.ndarray) -> Mom
     return total
 
 
-def _check_arrays(reader: VersionReader, names: list[str]) -> list[str]:
+def _check_arrays(reader: _VersionReader, names: list[str]) -> list[str]:
     for name in names:
         group = name.split("/", 1)[0]
         if group not in ("motion", "audio") or "/" not in name:
@@ -110,7 +111,7 @@ def _check_arrays(reader: VersionReader, names: list[str]) -> list[str]:
     return names
 
 
-def stats(store: str | Path, options: StatsOptions) -> CommandResult:
+def stats(store: str | Path | StoreBackend, options: StatsOptions) -> CommandResult:
     """Compute the split's statistics of each array and write them as a new version derived
     from ``options.version`` (default: the latest, as it is once the lock is held)."""
     with derive_version(store, "stats", options.version, options.wait_for_lock) as step:
@@ -125,7 +126,7 @@ def _stats_step(step: DerivedVersion, options: StatsOptions) -> CommandResult:
     if not names:
         raise InputError(f"version {step.parent} has none of the default arrays; name --arrays")
     names = _check_arrays(reader, list(dict.fromkeys(names)))
-    seq = SequenceReader(step.store, step.parent)
+    seq = _SequenceReader(reader)  # the step's open version, not a second open
     seq_ids = seq.split_members(options.split, options.scheme)
     if not seq_ids:
         raise InputError(f"split {options.split!r} of scheme {options.scheme!r} has no sequence")

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from dancedata.compute.stems import DEFAULT_BACKEND
+from dancedata.compute.stems import DEFAULT_BACKEND, StemBackend, stem_backend
 
 
 def split_openunmix_options(options: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -40,18 +40,17 @@ def openunmix_separator(**load_options: Any) -> Any:
 
 
 def separate(
-    y: np.ndarray, sr: float, backend: str = DEFAULT_BACKEND, **options: Any
+    y: np.ndarray, sr: float, backend: str | StemBackend = DEFAULT_BACKEND, **options: Any
 ) -> dict[str, np.ndarray]:
     """:func:`dancedata.compute.stems.separate` with ``options`` of :func:`backend_config
-    <dancedata.compute.stems.backend_config>`'s names; for ``openunmix`` the separator is
-    loaded from the load options first."""
-    from dancedata.compute import stems
-
-    stems.backend_config(backend, **options)  # unknown options fail before any loading
-    if backend != "openunmix":
-        return stems.separate(y, sr, backend, **options)
+    <dancedata.compute.stems.backend_config>`'s names; for a backend that needs weights the
+    separator is loaded from the load options first."""
+    chosen = stem_backend(backend)
+    chosen.config(**options)  # unknown options fail before any loading
+    if not chosen.needs_weights:
+        return chosen.separate(y, sr, **options)
     load, run = split_openunmix_options(options)
-    return stems.separate(y, sr, backend, separator=openunmix_separator(**load), **run)
+    return chosen.separate(y, sr, separator=openunmix_separator(**load), **run)
 
 
 def separate_channels(

@@ -28,10 +28,10 @@ from dancedata.featurize.families.motion_base import MotionBatch
 from dancedata.featurize.family import registered
 from dancedata.featurize.family_settings import AudioSettings, MotionSettings
 from dancedata.store.build import BuildArea
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 
 
-def open_reader(store: str, version: str, fingerprint: str) -> VersionReader:
+def open_reader(store: str, version: str, fingerprint: str) -> _VersionReader:
     """One reader per process and version: workers reuse its open arrays across tasks. The
     version's fingerprint is part of the key, so a store rebuilt under the same path and
     version name is never read through a stale reader."""
@@ -39,8 +39,8 @@ def open_reader(store: str, version: str, fingerprint: str) -> VersionReader:
 
 
 @lru_cache(maxsize=8)
-def _cached_reader(store: str, version: str, fingerprint: str) -> VersionReader:
-    return VersionReader(store, version)
+def _cached_reader(store: str, version: str, fingerprint: str) -> _VersionReader:
+    return _VersionReader(store, version)
 
 
 # -- motion ------------------------------------------------------------------------------------

@@ -7,7 +7,7 @@
     for m in store.iter_measures(split="train"):               # crossmodal scheme by default
         m.motion, m.audio                                     # (frames, 225), (frames, 35)
 
-:class:`DanceStore` is :class:`dancedata.read.sequence_reader.SequenceReader` (tables, per-sequence
+:class:`DanceStore` is :class:`dancedata.read.sequence_reader._SequenceReader` (tables, per-sequence
 arrays, aligned audio, splits, measures table; nothing derived) with one-line methods for what
 is built on it, each in its own module: the paper views (:mod:`dancedata.read.views.assemble`,
 layouts in :mod:`dancedata.read.views.fact` and :mod:`dancedata.read.views.thesis`), the measure
@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dancedata.read.sequence_reader import SequenceReader
+from dancedata.read.sequence_reader import _SequenceReader
 from dancedata.read.views import assemble, measures, thesis
 from dancedata.read.views.cameras import sequence_cameras
 from dancedata.read.views.layouts import AUDIO_VIEWS, MOTION_VIEWS, VIEWS, ViewSpec
@@ -48,7 +48,7 @@ __all__ = [
 ]
 
 
-class DanceStore(SequenceReader):
+class DanceStore(_SequenceReader):
     """A committed version of a store, opened for reading (see the module docstring)."""
 
     # -- paper views ---------------------------------------------------------------------------

@@ -1,15 +1,15 @@
 """The thin store reader: a committed version read as sequences, with nothing derived.
 
-:class:`SequenceReader` gives the tables, each sequence's slice of the stored arrays, its audio
-aligned frame by frame, the split memberships, genres and the measures table. It computes
-nothing: the paper views (:mod:`dancedata.read.views`), the measure windows
-(:mod:`dancedata.read.views.measures`) and the AIST++ cameras
-(:mod:`dancedata.read.views.cameras`) are built on top of it, and
-:class:`dancedata.read.loader.DanceStore`, what users open, is this reader with those as methods.
+Private: users meet :class:`dancedata.read.loader.DanceStore` (``dancedata.open_store``), which
+is this class with the views as methods. :class:`_SequenceReader` gives the tables, each
+sequence's slice of the stored arrays, its audio aligned frame by frame, the split memberships,
+genres and the measures table. It computes nothing: the paper views (:mod:`dancedata.read.views`),
+the measure windows (:mod:`dancedata.read.views.measures`) and the AIST++ cameras
+(:mod:`dancedata.read.views.cameras`) are built on top of it.
 
 Arrays are read whole into memory on first use and kept (a store's arrays are immutable), so
 random access afterwards costs a numpy slice. For stores larger than memory, read slices through
-:meth:`SequenceReader.zarr` instead.
+:meth:`_SequenceReader.zarr` instead.
 """
 
 from __future__ import annotations
@@ -21,8 +21,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dancedata.errors import StoreError
+from dancedata.store.backend import StoreBackend
+from dancedata.store.backend_open import make_backend
 from dancedata.store.layout import warn_once
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.seq_ids import seq_id_problem
 
 if TYPE_CHECKING:
@@ -51,16 +53,30 @@ def known_ids(wanted: str, ids: list[str], shown: int = 5) -> str:
     return f"{count}: {', '.join(ids[:shown])}{', ...' if len(ids) > shown else ''}"
 
 
-class SequenceReader:
+class _SequenceReader:
     """A committed version of a store, read as sequences (the generic core of
-    :class:`dancedata.read.loader.DanceStore`)."""
+    :class:`dancedata.read.loader.DanceStore`, the public reader; views type against this
+    core so that they need not import the loader)."""
 
-    def __init__(self, path: str | Path, version: str | None = None) -> None:
-        self.path = Path(path)
-        self.locator = store_locator(path)
+    def __init__(
+        self, path: str | Path | StoreBackend | _VersionReader, version: str | None = None
+    ) -> None:
+        """``path``: the store as a path or URL (resolved here, once), its handle (a
+        :class:`~dancedata.store.backend.StoreBackend`), or a version already open (then
+        ``version`` must be None or that version's name)."""
+        if isinstance(path, _VersionReader):
+            if version is not None and version != path.version:
+                raise StoreError(f"version {version} asked of an open {path.version}", path.path)
+            self._reader = path
+        else:
+            self._reader = _VersionReader(make_backend(path), version)
+        self.backend: StoreBackend = self._reader.layout.backend
+        """The store's handle: hand it down to whatever else reads or writes this store."""
+        given = path if isinstance(path, str | Path) else None
+        self.path = Path(given if given is not None else str(self.backend.where()))
+        self.locator = store_locator(given) if given is not None else self.backend.locator()
         """The store as given, as a string that reopens it: a local folder or a URL such as
         ``s3://bucket/prefix`` (``Path`` would turn ``s3://`` into ``s3:/``)."""
-        self._reader = VersionReader(path, version)
         self.version = self._reader.version
         self._arrays: dict[str, np.ndarray] = {}
 

@@ -5,7 +5,7 @@ spans, the options), so it pickles in a few kilobytes: a data-loader worker star
 ``spawn`` gets a copy that opens the store itself, on its first item; one started by
 ``fork`` inherits whatever the parent already loaded (zarr resets its event loop after a
 fork). Views are read through the reader's whole-array cache
-(:meth:`SequenceReader.whole_array`), so after the first item of a process a window costs a
+(:meth:`_SequenceReader.whole_array`), so after the first item of a process a window costs a
 few numpy slices.
 
 :func:`open_window_source` is what the datasets call: the split checked (an unknown or empty

@@ -37,7 +37,7 @@ import numpy as np
 from dancedata.errors import InputError
 
 if TYPE_CHECKING:
-    from dancedata.read.sequence_reader import SequenceReader
+    from dancedata.read.sequence_reader import _SequenceReader
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,7 @@ UNIT_TABLES = {"beats": "beat", "phrases": "phrase"}
 """Window kinds cut from a unit table of ``segment``, with the table's number column."""
 
 
-def _unit_rows(store: SequenceReader, table: str, split: str | None, scheme: str) -> list[dict]:
+def _unit_rows(store: _SequenceReader, table: str, split: str | None, scheme: str) -> list[dict]:
     """Rows of ``table`` for the sequences of ``split``; StoreError naming the segment command
     that writes it when this version lacks it."""
     from dancedata.errors import StoreError
@@ -77,7 +77,7 @@ def _unit_rows(store: SequenceReader, table: str, split: str | None, scheme: str
 
 
 def unit_spans(
-    store: SequenceReader,
+    store: _SequenceReader,
     kind: str,
     split: str | None,
     scheme: str,
@@ -176,13 +176,13 @@ def sliding_starts(n_frames: int, window: int, hop: float) -> np.ndarray:
     return starts[starts + window <= n_frames]
 
 
-def _frames_available(store: SequenceReader, seq_id: str, with_audio: bool) -> int:
+def _frames_available(store: _SequenceReader, seq_id: str, with_audio: bool) -> int:
     n = int(store.sequence(seq_id)["n_frames"])
     return min(n, store.audio_frames(seq_id)) if with_audio else n
 
 
 def measure_spans(
-    store: SequenceReader,
+    store: _SequenceReader,
     split: str | None,
     scheme: str,
     with_audio: bool,
@@ -220,7 +220,7 @@ def measure_spans(
 
 
 def second_spans(
-    store: SequenceReader,
+    store: _SequenceReader,
     split: str | None,
     scheme: str,
     with_audio: bool,

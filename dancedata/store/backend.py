@@ -72,6 +72,11 @@ class StoreBackend(ABC):
     def describe(self) -> str:
         """The store root as the user wrote it (a path or a URL)."""
 
+    def __str__(self) -> str:
+        """:meth:`describe`: a message naming the store handed down as a backend reads as it
+        did when the store was handed down as the path."""
+        return self.describe()
+
     @abstractmethod
     def locator(self, key: str = "") -> str:
         """A string ``make_backend`` turns back into the storage at ``key`` from any process

@@ -23,6 +23,8 @@ from pathlib import Path
 from typing import Any
 
 from dancedata.errors import StoreError
+from dancedata.store.backend import StoreBackend
+from dancedata.store.backend_open import make_backend
 from dancedata.store.layout import StoreLayout, last_checkout, pointer_with_latest, version_number
 from dancedata.store.writer import hold_store_lock
 
@@ -47,7 +49,7 @@ class CheckoutResult:
     changed: bool
     entry: dict[str, Any] | None
 
-    def message(self, store: str | Path) -> str:
+    def message(self, store: str | Path | StoreBackend) -> str:
         if not self.changed:
             return f"checkout: {self.version} is already the latest version of {store}"
         return (
@@ -73,12 +75,15 @@ def _who() -> str:
     return f"{user}@{socket.gethostname()}"
 
 
-def checkout(store: str | Path, version: str, *, wait: bool = False) -> CheckoutResult:
+def checkout(
+    store: str | Path | StoreBackend, version: str, *, wait: bool = False
+) -> CheckoutResult:
     """Make committed ``version`` (``"v3"`` or ``"3"``) the latest of ``store``, recorded in the
     checkout log. Checking out the version that is already latest writes nothing."""
     name = normalize_version(version)
-    with hold_store_lock(store, wait=wait):
-        layout = StoreLayout(store)
+    handle = make_backend(store)  # resolved once: the lock and the layout share it
+    with hold_store_lock(handle, wait=wait):
+        layout = StoreLayout(handle)
         committed = layout.committed_versions()
         if name not in committed:
             layout.resolve(name)  # the reader's error: damaged, or which versions exist
@@ -101,13 +106,13 @@ def checkout(store: str | Path, version: str, *, wait: bool = False) -> Checkout
     return CheckoutResult(name, previous, changed=True, entry=entry)
 
 
-def checkout_log(store: str | Path) -> list[dict[str, Any]]:
+def checkout_log(store: str | Path | StoreBackend) -> list[dict[str, Any]]:
     """Every checkout of ``store``, oldest first (entries that are not objects left out)."""
     log = StoreLayout(store).read_pointer().get(CHECKOUTS_KEY)
     return [e for e in log if isinstance(e, dict)] if isinstance(log, list) else []
 
 
-def switch_hint(store: str | Path, version: str, latest: str | None) -> str | None:
+def switch_hint(store: str | Path | StoreBackend, version: str, latest: str | None) -> str | None:
     """The "how to switch" sentence for a result found in ``version`` while ``latest`` is
     another version; None when ``version`` is the latest or :func:`builds_on` it."""
     if latest is None or latest == version:
@@ -117,7 +122,7 @@ def switch_hint(store: str | Path, version: str, latest: str | None) -> str | No
     return f"run `dancedata checkout {store} {version}` to make it the latest"
 
 
-def builds_on(store: str | Path, latest: str, version: str) -> bool:
+def builds_on(store: str | Path | StoreBackend, latest: str, version: str) -> bool:
     """True when ``version`` is an ancestor of ``latest`` (the manifests' ``parent`` chain) and
     no version after it on that chain was written by the same command: then ``latest`` still
     holds ``version``'s result (a re-run ingest under a featurized and segmented latest).

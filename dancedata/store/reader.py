@@ -25,12 +25,15 @@ if TYPE_CHECKING:
     import zarr
 
 
-class VersionReader:
+class _VersionReader:
     """Read-only access to ``STORE/versions/<version>`` (latest when ``version`` is None), on
-    any backend."""
+    any backend: the store layer's reader, private (users read through
+    :class:`dancedata.read.loader.DanceStore`, which holds one)."""
 
-    def __init__(self, store: str | Path | StoreBackend, version: str | None = None) -> None:
-        self.layout = StoreLayout(store)
+    def __init__(
+        self, store: str | Path | StoreBackend | StoreLayout, version: str | None = None
+    ) -> None:
+        self.layout = store if isinstance(store, StoreLayout) else StoreLayout(store)
         self.version = self.layout.resolve(version)
         self.path = self.layout.version_dir(self.version)  # a Path locally, else a URL
         self.files = self.layout.version_backend(self.version)

@@ -9,10 +9,11 @@ from pathlib import Path
 from typing import Any
 
 from dancedata.compute.bvh_units import USUAL_SIZE_M
+from dancedata.store.backend import StoreBackend
 from dancedata.store.checkout import checkout_log
 from dancedata.store.integrity import CHECKSUMS_FILE
 from dancedata.store.layout import TABLE_FILES, StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 
 # Per annotation kind: the sequences-table column (AIST++ ingest) and whether a row lacks it.
 _MISSING_WHEN: dict[str, tuple[str, Callable[[Any], bool]]] = {
@@ -47,8 +48,12 @@ def lineage(layout: StoreLayout, version: str) -> list[dict[str, Any]]:
     return chain
 
 
-def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
-    reader = VersionReader(store, version)
+def summarize(
+    store: str | Path | StoreBackend | _VersionReader, version: str | None = None
+) -> dict[str, Any]:
+    """What ``dancedata info`` shows of ``version`` (default latest) of ``store``: a path or
+    URL, the store's handle, or a version already open (then ``version`` is not used)."""
+    reader = store if isinstance(store, _VersionReader) else _VersionReader(store, version)
     manifest = reader.manifest
     info: dict[str, Any] = {
         "store": reader.layout.backend.describe(),  # as given: a path, or a URL kept whole
@@ -59,7 +64,7 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
         "created_at": manifest.get("created_at"),
         "parent": manifest.get("parent"),
         "skipped": len(manifest.get("skipped", [])),
-        "checkouts": checkout_log(store),  # `dancedata checkout`, oldest first
+        "checkouts": checkout_log(reader.layout.backend),  # `dancedata checkout`, oldest first
     }
     if reader.has_table("sequences"):
         sequences = reader.table("sequences").to_pylist()
@@ -119,7 +124,7 @@ def summarize(store: str | Path, version: str | None = None) -> dict[str, Any]:
     return info
 
 
-def record_hash(reader: VersionReader) -> str | None:
+def record_hash(reader: _VersionReader) -> str | None:
     """sha256 of the version's checksums.json: the end of the chain of integrity records
     (docs/STORE.md, 'What records the record'), to pin outside the store; None when the
     version has no record (versions from before checksums). Read through the version's

@@ -17,16 +17,17 @@ from typing import Any
 import numpy as np
 
 from dancedata.errors import StoreError
+from dancedata.store.backend import StoreBackend
 from dancedata.store.contract import store_schema
 from dancedata.store.integrity import verify_store
 from dancedata.store.layout import MANIFEST_FILE, ZARR_DIR, StoreLayout
-from dancedata.store.reader import VersionReader, metadata_problems
+from dancedata.store.reader import _VersionReader, metadata_problems
 from dancedata.store.seq_ids import seq_id_problem
 from dancedata.store.untrusted import MANIFEST_LIMIT, read_json
 
 
 def validate_store(
-    store: str | Path, version: str | None = None, *, deep: bool = False
+    store: str | Path | StoreBackend, version: str | None = None, *, deep: bool = False
 ) -> list[str]:
     """Problems with ``store`` (every committed version, or only ``version``).
 
@@ -61,7 +62,7 @@ def validate_store(
     for name in names:
         problems += [f"{name}: {p}" for p in integrity[name]]
         try:
-            reader = VersionReader(store, name)
+            reader = _VersionReader(layout, name)  # the store resolved once, above
         except StoreError as exc:
             problems.append(f"{name}: {exc}")
             continue
@@ -121,7 +122,7 @@ def _damaged_version_dirs(layout: StoreLayout, committed: list[str]) -> list[str
 
 
 def validate_version(
-    reader: VersionReader,
+    reader: _VersionReader,
     *,
     report_unreadable: bool = True,
     scanned: dict[Any, tuple[int, int]] | None = None,
@@ -223,7 +224,7 @@ def manifest_type_problems(manifest: Any) -> list[str]:
     return problems
 
 
-def _check_manifest(reader: VersionReader, schema: dict[str, Any]) -> list[str]:
+def _check_manifest(reader: _VersionReader, schema: dict[str, Any]) -> list[str]:
     try:
         manifest = reader.manifest
     except StoreError as exc:
@@ -294,7 +295,7 @@ def _contiguous(rows: list[dict[str, Any]], label: str) -> list[str]:
     return problems
 
 
-def _check_ranges(reader: VersionReader, tables: dict[str, list[dict[str, Any]]]) -> list[str]:
+def _check_ranges(reader: _VersionReader, tables: dict[str, list[dict[str, Any]]]) -> list[str]:
     problems: list[str] = []
     sequences = tables.get("sequences", [])
     by_id = {s["seq_id"]: s for s in sequences}
@@ -332,7 +333,7 @@ def _check_ranges(reader: VersionReader, tables: dict[str, list[dict[str, Any]]]
 
 
 def _check_arrays(
-    reader: VersionReader, tables: dict[str, list[dict[str, Any]]], schema: dict[str, Any]
+    reader: _VersionReader, tables: dict[str, list[dict[str, Any]]], schema: dict[str, Any]
 ) -> list[str]:
     problems: list[str] = []
     lengths = {
@@ -421,7 +422,7 @@ def nonfinite_rows(array: Any, *, allow_nan: bool, chunks: int | None = None) ->
     return bad_rows, first
 
 
-def _array_files_key(reader: VersionReader, name: str, allow_nan: bool) -> Any:
+def _array_files_key(reader: _VersionReader, name: str, allow_nan: bool) -> Any:
     """What identifies an array's values in storage: shape, dtype and the identity of each
     chunk file (an inode locally: versions that carry the array over by hard link share them;
     its zarr.json is a copy, so it is left out); None where the backend cannot tell (object
@@ -440,7 +441,7 @@ def _array_files_key(reader: VersionReader, name: str, allow_nan: bool) -> Any:
 
 
 def _check_finite(
-    reader: VersionReader, report_unreadable: bool, scanned: dict[Any, tuple[int, int]]
+    reader: _VersionReader, report_unreadable: bool, scanned: dict[Any, tuple[int, int]]
 ) -> list[str]:
     """Every row of every float array is finite (NaN allowed where the attrs say so)."""
     problems: list[str] = []
@@ -467,7 +468,7 @@ def _check_finite(
     return problems
 
 
-def store_notes(store: str | Path) -> list[str]:
+def store_notes(store: str | Path | StoreBackend) -> list[str]:
     """Things worth knowing that are not contract violations: unfinished temporary versions
     (never visible to readers; the next writer resumes or removes them) and the write lock,
     on every backend."""

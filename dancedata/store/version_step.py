@@ -28,10 +28,12 @@ from pathlib import Path
 from typing import Any
 
 from dancedata._version import __version__
+from dancedata.store.backend import StoreBackend
+from dancedata.store.backend_open import make_backend
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.layout import StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.writer import VersionWriter, already_done, hold_store_lock
 
 
@@ -40,7 +42,8 @@ class DerivedVersion:
     """A command deriving one new version from ``parent``, while ``lock`` is held.
 
     Attributes:
-        store: the store (path or URL) as the command was given it.
+        store: the store's handle, resolved once by :func:`derive_version` (its ``str`` is
+            the path or URL as given).
         command: the command's name; also its stage in the manifest's ``stages``.
         parent: the version the new one derives from.
         reader: that version, open.
@@ -48,10 +51,10 @@ class DerivedVersion:
         wait_for_lock: whether the command waits for another writer (recorded by the writer).
     """
 
-    store: str | Path
+    store: StoreBackend
     command: str
     parent: str
-    reader: VersionReader
+    reader: _VersionReader
     lock: Any
     wait_for_lock: bool
 
@@ -86,11 +89,13 @@ class DerivedVersion:
 
 @contextmanager
 def derive_version(
-    store: str | Path, command: str, version: str | None, wait_for_lock: bool
+    store: str | Path | StoreBackend, command: str, version: str | None, wait_for_lock: bool
 ) -> Iterator[DerivedVersion]:
     """Hold the store lock for the block and open the parent: ``version``, or the latest one
     as it is once the lock is held."""
-    with hold_store_lock(store, wait=wait_for_lock) as lock:
-        parent = StoreLayout(store).resolve(version)
-        reader = VersionReader(store, parent)
-        yield DerivedVersion(store, command, parent, reader, lock, wait_for_lock)
+    handle = make_backend(store)  # resolved once: lock, parent, reader and writer share it
+    with hold_store_lock(handle, wait=wait_for_lock) as lock:
+        layout = StoreLayout(handle)
+        parent = layout.resolve(version)
+        reader = _VersionReader(layout, parent)
+        yield DerivedVersion(handle, command, parent, reader, lock, wait_for_lock)

@@ -33,9 +33,10 @@ from dancedata.methods.keyframes import (
 )
 from dancedata.methods.keyframes_dp import dp_keyframes_batch
 from dancedata.methods.keyframes_peaks import DP, KEYFRAME_SOURCES, peak_keyframes_batch
+from dancedata.store.backend import StoreBackend
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 from dancedata.store.version_step import DerivedVersion, derive_version
 
 DATA_STAGES = ("ingest", "featurize", "segment")
@@ -101,7 +102,7 @@ class MeasureSet:
         return out
 
 
-def _measure_set(reader: VersionReader, options: KeyframesOptions) -> tuple[MeasureSet, list]:
+def _measure_set(reader: _VersionReader, options: KeyframesOptions) -> tuple[MeasureSet, list]:
     if not reader.has_table("measures"):
         raise InputError(
             f"version {reader.version} has no measures table (run `dancedata segment` first)"
@@ -201,7 +202,7 @@ def _sequence_curve(store: Any, seq_id: str, strategy: str, params: KeyframePara
     return store.weighted_nmfd(seq_id, params.nmfd_weights, params.normalize)
 
 
-def _require_arrays(reader: VersionReader, strategy: str, params: KeyframeParams) -> None:
+def _require_arrays(reader: _VersionReader, strategy: str, params: KeyframeParams) -> None:
     """One clear line when the version lacks what ``strategy`` reads."""
     if strategy == "even":
         return
@@ -235,7 +236,7 @@ class EulerRows:
     """The measures' 75-d Euler rows (trans m + 24×3 Euler rad), read once, gathered per batch;
     with ``euler_branch = continuous`` each sequence's curves are made continuous first."""
 
-    def __init__(self, reader: VersionReader, sequences: list[dict[str, Any]],
+    def __init__(self, reader: _VersionReader, sequences: list[dict[str, Any]],
                  params: KeyframeParams, order: Any) -> None:  # fmt: skip
         self.trans = np.asarray(reader.array("motion/trans")[...], dtype=np.float64)
         euler = np.asarray(reader.array("motion/euler")[...])
@@ -382,7 +383,7 @@ def _table(selections: list[tuple[str, int, str, list[Selection]]], measures: Me
     return table
 
 
-def keyframes(store: str | Path, options: KeyframesOptions) -> CommandResult:
+def keyframes(store: str | Path | StoreBackend, options: KeyframesOptions) -> CommandResult:
     """Select keyframes for every measure and write the keyframes table as a new version
     derived from ``options.version`` (default: the latest, as it is once the lock is held)."""
     # Parent, fingerprint and the "already done" check are read under the store lock, as in
@@ -394,7 +395,7 @@ def keyframes(store: str | Path, options: KeyframesOptions) -> CommandResult:
 def _keyframes_step(step: DerivedVersion, options: KeyframesOptions) -> CommandResult:
     from dancedata.read.loader import DanceStore
 
-    store, parent, reader = step.store, step.parent, step.reader
+    reader = step.reader
     stages = reader.manifest.get("stages") or {}
     data = {stage: stages.get(stage) for stage in DATA_STAGES}
     if data["ingest"] is None:
@@ -431,7 +432,7 @@ def _keyframes_step(step: DerivedVersion, options: KeyframesOptions) -> CommandR
         return done
 
     measures, sequences = _measure_set(reader, options)
-    loader = DanceStore(store, parent)
+    loader = DanceStore(reader)  # the step's open parent, not a second open
     everything = np.arange(len(measures.seq_id))
     selections: list[tuple[str, int, str, list[Selection]]] = []
     skipped: dict[tuple[str, str], str] = {}
@@ -484,7 +485,11 @@ def _keyframes_step(step: DerivedVersion, options: KeyframesOptions) -> CommandR
 
 def read_keyframes(store: str | Path, version: str | None = None) -> Any:
     """The keyframes table of a version (pyarrow Table); StoreError when it has none."""
-    reader = VersionReader(store, version)
+    return _keyframes_table(_VersionReader(store, version))
+
+
+def _keyframes_table(reader: _VersionReader) -> Any:
+    """The keyframes table of the open version ``reader``; StoreError when it has none."""
     if not reader.has_table("keyframes"):
         raise StoreError(
             f"version {reader.version} has no keyframes table (run `dancedata keyframes`)"
@@ -526,8 +531,8 @@ def keyframe_run(
     Measures come in the table's order (sequence, measure); their global frames and lengths are
     taken from the sequences and measures tables of the same version.
     """
-    reader = VersionReader(store, version)
-    table = read_keyframes(store, reader.version)
+    reader = _VersionReader(store, version)
+    table = _keyframes_table(reader)  # the same open version, not a second open
     runs = reader.manifest.get("config", {}).get("run_ids", {})
     if run_id is None:
         if strategy is None or n_keyframes is None:

@@ -279,10 +279,11 @@ def run_experiment(
     from dancedata.study.runner_generated import GeneratedOutputs
 
     began = time.perf_counter()
-    from dancedata.store.reader import VersionReader
+    from dancedata.store.backend_open import make_backend
+    from dancedata.store.reader import _VersionReader
 
-    loader = DanceStore(store, version)
-    reader = VersionReader(store, loader.version)
+    reader = _VersionReader(make_backend(store), version)  # opened once, shared by both
+    loader = DanceStore(reader)
     params = config.keyframe_params()
     metrics = config.metrics
     wants_fid = _needs_positions(metrics)  # SMPL-24 positions

@@ -28,8 +28,9 @@ from pathlib import Path
 from typing import Any
 
 from dancedata.errors import StoreError
+from dancedata.store.backend import StoreBackend
 from dancedata.store.layout import TABLE_FILES
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 
 CONFORMS_TO = "http://mlcommons.org/croissant/1.0"
 CONTEXT: dict[str, Any] = {
@@ -89,7 +90,7 @@ def _data_type(arrow_type: Any) -> str:
     return "sc:Text"
 
 
-def _table_file(reader: VersionReader, name: str, recorded: dict[str, Any]) -> dict[str, Any]:
+def _table_file(reader: _VersionReader, name: str, recorded: dict[str, Any]) -> dict[str, Any]:
     """The FileObject of table ``name``: its bytes hashed and checked against checksums.json."""
     key = TABLE_FILES[name]
     data = reader.files.read_bytes(key)
@@ -111,7 +112,7 @@ def _table_file(reader: VersionReader, name: str, recorded: dict[str, Any]) -> d
     }
 
 
-def _table_record_set(reader: VersionReader, name: str) -> dict[str, Any]:
+def _table_record_set(reader: _VersionReader, name: str) -> dict[str, Any]:
     key = TABLE_FILES[name]
     fields = [
         {
@@ -135,7 +136,7 @@ ARRAY_FIELDS = (
 )
 
 
-def _array_record_set(reader: VersionReader) -> dict[str, Any]:
+def _array_record_set(reader: _VersionReader) -> dict[str, Any]:
     records = []
     for name in reader.array_names():
         array = reader.array(name)
@@ -176,7 +177,7 @@ def _array_record_set(reader: VersionReader) -> dict[str, Any]:
     }
 
 
-def _split_counts(reader: VersionReader) -> str:
+def _split_counts(reader: _VersionReader) -> str:
     counts: dict[tuple[str, str], int] = {}
     for row in reader.table("splits").to_pylist():
         key = (str(row["scheme"]), str(row["split"]))
@@ -185,7 +186,7 @@ def _split_counts(reader: VersionReader) -> str:
 
 
 def croissant_record(
-    store: str | Path,
+    store: str | Path | StoreBackend,
     version: str | None = None,
     *,
     license: str | None = None,
@@ -194,7 +195,7 @@ def croissant_record(
     base_url: str | None = None,
 ) -> dict[str, Any]:
     """The Croissant 1.0 JSON-LD record of ``version`` (latest when None) of ``store``."""
-    reader = VersionReader(store, version)
+    reader = _VersionReader(store, version)
     manifest = reader.manifest
     try:
         recorded = json.loads(reader.files.read_bytes("checksums.json"))

@@ -19,8 +19,8 @@ import numpy as np
 
 from dancedata.errors import DancedataError
 from dancedata.read.loader import DanceStore
-from dancedata.read.sequence_reader import SequenceReader
-from dancedata.store.reader import VersionReader
+from dancedata.read.sequence_reader import _SequenceReader
+from dancedata.store.reader import _VersionReader
 
 STEM_ORDER: tuple[str, ...] = ("drums", "bass", "vocals", "other")
 # Joints of the joint-angle panel when the skeleton has them (SMPL-24 names); otherwise the
@@ -126,7 +126,7 @@ def _decode_waveform(
     return Waveform(times=times, lo=lo, hi=hi, sr=sr, path=str(path))
 
 
-def read_keyframes(reader: VersionReader | SequenceReader) -> list[dict[str, Any]] | None:
+def read_keyframes(reader: _VersionReader | _SequenceReader) -> list[dict[str, Any]] | None:
     """Rows of the version's ``keyframes`` table (docs/EXPERIMENTS.md §2.5), or None without one."""
     if not reader.has_table("keyframes"):
         return None

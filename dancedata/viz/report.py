@@ -29,7 +29,8 @@ from typing import Any
 
 from dancedata._version import __version__
 from dancedata.errors import DancedataError, InputError
-from dancedata.store.reader import VersionReader
+from dancedata.store.backend import StoreBackend
+from dancedata.store.reader import _VersionReader
 from dancedata.store.summary import lineage, summarize
 from dancedata.viz import report_html as h
 from dancedata.viz.plot_data import read_keyframes
@@ -362,11 +363,11 @@ def figure_png_base64(fig: Any, dpi: float) -> str:
     return base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
-def _gallery(store: str | Path, version: str, seq_ids: list[str], dpi: float) -> str:
+def _gallery(reader: _VersionReader, seq_ids: list[str], dpi: float) -> str:
     from dancedata.read.loader import DanceStore
     from dancedata.viz.plot import sequence_figure
 
-    ds = DanceStore(store, version)
+    ds = DanceStore(reader)  # the version the card describes, already open
     figures = []
     for seq_id in seq_ids:
         try:
@@ -386,7 +387,7 @@ def _gallery(store: str | Path, version: str, seq_ids: list[str], dpi: float) ->
 
 
 def build_report(
-    store: str | Path,
+    store: str | Path | StoreBackend,
     version: str | None = None,
     *,
     gallery: int = 3,
@@ -397,8 +398,10 @@ def build_report(
     """The dataset card of ``version`` (default latest) of ``store`` as one HTML string;
     ``croissant``: the relative address of its Croissant record, linked from the page."""
     started = time.perf_counter()
-    info = summarize(store, version)
-    reader = VersionReader(store, info["version"])
+    from dancedata.store.backend_open import make_backend
+
+    reader = _VersionReader(make_backend(store), version)  # opened once for the whole card
+    info = summarize(reader)
     chain = lineage(reader.layout, reader.version)
     sequences = reader.table("sequences").to_pylist() if reader.has_table("sequences") else []
     music = reader.table("music").to_pylist() if reader.has_table("music") else []
@@ -418,9 +421,7 @@ def build_report(
         _features(stats),
     ]
     if gallery > 0 and sequences:
-        sections.append(
-            _gallery(store, reader.version, gallery_sequences(sequences, gallery), gallery_dpi)
-        )
+        sections.append(_gallery(reader, gallery_sequences(sequences, gallery), gallery_dpi))
     elapsed = time.perf_counter() - started
     sections.append(
         f'<p class="muted">Written by dancedata {h.esc(__version__)} in {elapsed:.1f} s '

@@ -26,7 +26,7 @@ import numpy as np
 from dancedata.compute.audio_features import AudioFeatureConfig
 from dancedata.compute.nmfd import NMFD_COMPONENTS, NMFD_DIVERGENCE
 from dancedata.compute.stem_features import STEM_FEATURE_NAMES
-from dancedata.compute.stems import STEM_NAMES
+from dancedata.compute.stems import STEM_BACKENDS, STEM_NAMES
 from dancedata.featurize.families.audio_base import (
     BASE_LIBRARIES,
     STEM_CHOICES,
@@ -79,7 +79,7 @@ def weights_checksums(model: str, weights_dir: str | None) -> dict[str, dict[str
 
 def separation_options(settings: AudioSettings) -> dict[str, Any]:
     """Keyword options for :func:`dancedata.compute.stems.separate` with ``settings``."""
-    if settings.stems == "openunmix":
+    if settings.stem_backend.needs_weights:
         return {
             "model": settings.stems_model,
             "weights_dir": settings.stems_weights,
@@ -97,8 +97,10 @@ OFFLINE_ALGORITHM = 2
 
 
 def algorithm_config(settings: AudioSettings) -> dict[str, Any]:
-    """``{"offline_algorithm": OFFLINE_ALGORITHM}`` for the offline backend, else nothing."""
-    return {"offline_algorithm": OFFLINE_ALGORITHM} if settings.stems == "offline" else {}
+    """``{"offline_algorithm": OFFLINE_ALGORITHM}`` for the offline backend (the package's own
+    arithmetic), else nothing (a backend with weights is recorded by their sha256)."""
+    chosen = settings.stem_backend
+    return {} if chosen.needs_weights else {f"{chosen.name}_algorithm": OFFLINE_ALGORITHM}
 
 
 def stem_backend_config(settings: AudioSettings) -> dict[str, Any]:
@@ -106,8 +108,8 @@ def stem_backend_config(settings: AudioSettings) -> dict[str, Any]:
     for ``openunmix`` the weights folder is replaced by the weight files' names and sha256."""
     from dancedata.compute.stems import backend_config
 
-    config = backend_config(settings.stems, **separation_options(settings))
-    if settings.stems == "openunmix":
+    config = backend_config(settings.stem_backend, **separation_options(settings))
+    if settings.stem_backend.needs_weights:
         from dancedata.io import openunmix_weights as umx
 
         config.pop("weights_dir", None)
@@ -125,7 +127,7 @@ def track_stems(track: TrackAudio, settings: AudioSettings) -> dict[str, np.ndar
     :func:`openunmix_stems`); ``offline`` the feature-rate mono mix."""
     from dancedata.compute.stems import separate
 
-    if settings.stems == "openunmix":
+    if settings.stem_backend.needs_weights:
         return track.shared(SEPARATE_KEY, lambda: openunmix_stems(track, settings))
     options = separation_options(settings)
     return track.shared(
@@ -133,7 +135,7 @@ def track_stems(track: TrackAudio, settings: AudioSettings) -> dict[str, np.ndar
         lambda: separate(
             track.y,
             track.cfg.sr,
-            backend=settings.stems,
+            backend=settings.stem_backend,
             stft=track.stft() if _stft_agrees(track.cfg, settings) else None,
             **options,
         ),
@@ -142,10 +144,9 @@ def track_stems(track: TrackAudio, settings: AudioSettings) -> dict[str, np.ndar
 
 def _stft_agrees(cfg: AudioFeatureConfig, settings: AudioSettings) -> bool:
     """Whether the offline backend's STFT is the track's shared one (same n_fft and hop)."""
-    from dancedata.compute.stems import backend_config
-
-    config = backend_config(settings.stems, **separation_options(settings))
-    return settings.stems == "offline" and (config["n_fft"], config["hop_length"]) == (
+    chosen = settings.stem_backend
+    config = chosen.config(**separation_options(settings))
+    return chosen.takes_stft and (config["n_fft"], config["hop_length"]) == (
         cfg.n_fft,
         cfg.hop_length,
     )
@@ -217,9 +218,10 @@ def decode_native_checked(path: str, sha256: str | None, max_seconds: float | No
 
 
 def _stem_libraries(settings: AudioSettings | None) -> tuple[str, ...]:
-    if (settings or _DEFAULT).stems == "openunmix":
-        return (*BASE_LIBRARIES, "torch", "torchaudio", "openunmix")
-    return BASE_LIBRARIES
+    settings = settings or _DEFAULT
+    if settings.stems not in STEM_BACKENDS:  # none or unknown: check() says so
+        return BASE_LIBRARIES
+    return (*BASE_LIBRARIES, *settings.stem_backend.libraries)
 
 
 def _stem_check(settings: AudioSettings) -> str | None:

@@ -13,14 +13,14 @@ from dancedata.ingest.bvh.inputs import BvhInput
 from dancedata.ingest.source import InputChecksums
 from dancedata.io.bvh_attrs import is_bvh_skeleton
 from dancedata.store.layout import StoreLayout
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 
 
 @dataclass
 class AppendedVersion:
     """What the version appended to (``--append``) contributes."""
 
-    reader: VersionReader
+    reader: _VersionReader
     attrs: dict[str, Any]
     rows: list[dict[str, Any]]
     music: list[dict[str, Any]]
@@ -30,7 +30,7 @@ class AppendedVersion:
 def read_appended_version(store: str | Path, layout: StoreLayout) -> AppendedVersion:
     if not layout.exists():
         raise InputError("--append needs an existing store", store)
-    reader = VersionReader(store)
+    reader = _VersionReader(store)
     attrs = reader.group_attrs("motion")
     if attrs.get("source") != SOURCE or not is_bvh_skeleton(attrs.get("skeleton")):
         raise InputError(

@@ -17,7 +17,7 @@ from dancedata.ingest.source import FrameArrayTarget, StoredArray
 from dancedata.io.bvh import BvhSkeleton
 from dancedata.io.bvh_attrs import skeleton_attrs, skeleton_from_attrs, skeleton_mismatch
 from dancedata.store.arrays import CHUNK_FRAMES
-from dancedata.store.reader import VersionReader
+from dancedata.store.reader import _VersionReader
 
 __all__ = ["SOURCE", "BvhRig", "bvh_array_specs", "copy_parent_frames", "motion_arrays"]
 
@@ -81,7 +81,7 @@ class BvhRig:
         self.translations = False
         self.skeleton_from = ""  # the file (or version) the store's skeleton was taken from
 
-    def adopt_parent(self, reader: VersionReader) -> None:
+    def adopt_parent(self, reader: _VersionReader) -> None:
         """Take skeleton, rate and attrs from the BVH version appended to."""
         self.attrs = reader.group_attrs("motion")
         self.skeleton = skeleton_from_attrs(self.attrs["skeleton"])
@@ -130,7 +130,7 @@ class BvhRig:
 
 
 def copy_parent_frames(
-    reader: VersionReader, target: FrameArrayTarget, specs: list[StoredArray], n_frames: int
+    reader: _VersionReader, target: FrameArrayTarget, specs: list[StoredArray], n_frames: int
 ) -> None:
     """Declare ``specs`` on ``target`` and copy the parent's first ``n_frames`` frames of them,
     chunk by chunk."""

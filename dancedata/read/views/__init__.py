@@ -1,4 +1,4 @@
-"""Views over the thin store reader (:class:`dancedata.read.sequence_reader.SequenceReader`).
+"""Views over the thin store reader (:class:`dancedata.read.sequence_reader._SequenceReader`).
 
 Each module has one job and reads the store only through the reader's public methods:
 

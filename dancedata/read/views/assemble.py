@@ -26,10 +26,10 @@ from dancedata.read.views.layouts import (
 )
 
 if TYPE_CHECKING:
-    from dancedata.read.sequence_reader import SequenceReader
+    from dancedata.read.sequence_reader import _SequenceReader
 
 
-def sequence_view(store: SequenceReader, seq_id: str, name: ViewSpec) -> np.ndarray:
+def sequence_view(store: _SequenceReader, seq_id: str, name: ViewSpec) -> np.ndarray:
     """View ``name`` (a layout, an array path or a list: a view spec) of ``seq_id`` as float32
     (frames, D): motion parts run over the sequence's frames, audio parts over its audio
     frames (``audio_frames``); a spec mixing both is cut to the shorter."""
@@ -45,7 +45,7 @@ def sequence_view(store: SequenceReader, seq_id: str, name: ViewSpec) -> np.ndar
     return stack_parts(parts, 0, common_length(parts))
 
 
-def view_parts(store: SequenceReader, name: ViewSpec) -> list[np.ndarray | None]:
+def view_parts(store: _SequenceReader, name: ViewSpec) -> list[np.ndarray | None]:
     """The arrays of view spec ``name`` over the whole store, each as (rows, width) float32 (the
     reader's cached whole arrays reshaped, copied only when not float32); None for FACT's six
     zero columns. Motion parts are indexed by global motion frame, audio parts by music
@@ -63,7 +63,7 @@ def view_parts(store: SequenceReader, name: ViewSpec) -> list[np.ndarray | None]
     return parts
 
 
-def require_view_arrays(store: SequenceReader, name: ViewSpec) -> None:
+def require_view_arrays(store: _SequenceReader, name: ViewSpec) -> None:
     """A clear StoreError when a spec's arrays are absent (saying whether featurize can help:
     rotation views need joint rotations, which poses from video, or any source with positions
     only, do not have), or when a paper layout does not fit the store
@@ -104,7 +104,7 @@ def require_view_arrays(store: SequenceReader, name: ViewSpec) -> None:
     raise StoreError(message, store.path)
 
 
-def _rig(store: SequenceReader) -> tuple[str, list[str]]:
+def _rig(store: _SequenceReader) -> tuple[str, list[str]]:
     skeleton = store.group_attrs("motion").get("skeleton") or {}
     joints = skeleton.get("joints") if isinstance(skeleton, dict) else None
     joints = [str(j) for j in joints] if isinstance(joints, list) else []
@@ -116,11 +116,11 @@ def _is_smpl24(name: str, joints: list[str]) -> bool:
     return tuple(joints) == SMPL_JOINTS or (name == "smpl24" and len(joints) == 24)
 
 
-def _row_width(store: SequenceReader, path: str) -> int:
+def _row_width(store: _SequenceReader, path: str) -> int:
     return int(np.prod(store.zarr(path).shape[1:], dtype=np.int64))
 
 
-def require_view_fits(store: SequenceReader, name: ViewSpec) -> None:
+def require_view_fits(store: _SequenceReader, name: ViewSpec) -> None:
     """StoreError with the reason when a paper layout of the spec does not fit the store,
     instead of a silently different width: the motion layouts (``fact_motion_225``,
     ``thesis_euler_75``) are defined on the 24-joint SMPL rig, and every layout's width is the

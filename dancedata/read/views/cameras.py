@@ -12,10 +12,10 @@ from dancedata.errors import StoreError
 from dancedata.read.cameras import CameraSet, camera_set
 
 if TYPE_CHECKING:
-    from dancedata.read.sequence_reader import SequenceReader
+    from dancedata.read.sequence_reader import _SequenceReader
 
 
-def sequence_cameras(store: SequenceReader, seq_id: str) -> CameraSet:
+def sequence_cameras(store: _SequenceReader, seq_id: str) -> CameraSet:
     """The calibrated cameras of the sequence's AIST++ setting, in the view order of
     ``motion/keypoints2d``; StoreError when the sequence or the store has none."""
     setting = store.sequence(seq_id).get("camera_setting")

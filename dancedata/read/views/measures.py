@@ -19,7 +19,7 @@ from dancedata.read.views.layouts import ViewSpec, check_view_names
 from dancedata.read.windows import MeasureWindows
 
 if TYPE_CHECKING:
-    from dancedata.read.sequence_reader import SequenceReader
+    from dancedata.read.sequence_reader import _SequenceReader
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class MeasureWindow:
 
 
 def measure_windows(
-    store: SequenceReader,
+    store: _SequenceReader,
     split: str | None = None,
     scheme: str = "crossmodal",
     motion: ViewSpec | None = "fact_motion_225",
@@ -74,7 +74,7 @@ def measure_windows(
 
 
 def iter_measures(
-    store: SequenceReader,
+    store: _SequenceReader,
     split: str | None = None,
     scheme: str = "crossmodal",
     motion: ViewSpec | None = "fact_motion_225",

@@ -27,7 +27,7 @@ class ArrayStats:
     n_frames: int
 
 
-def normalization(reader, array: str) -> ArrayStats:  # noqa: ANN001 - any SequenceReader
+def normalization(reader, array: str) -> ArrayStats:  # noqa: ANN001 - any _SequenceReader
     """The stored statistics of ``array``; StoreError naming ``dancedata stats`` when absent."""
     if not reader.has_table("normalization"):
         raise StoreError(

@@ -20,7 +20,7 @@ import numpy as np
 from dancedata.errors import StoreError
 
 if TYPE_CHECKING:
-    from dancedata.read.sequence_reader import SequenceReader
+    from dancedata.read.sequence_reader import _SequenceReader
 
 STEM_ORDER: tuple[str, ...] = ("drums", "bass", "vocals", "other")
 
@@ -36,7 +36,7 @@ THESIS_VIEWS: dict[str, list[tuple[str, str]]] = {
 
 
 def weighted_stem_onsets(
-    store: SequenceReader,
+    store: _SequenceReader,
     seq_id: str,
     weights: dict[str, float] | None = None,
     normalize: bool = False,
@@ -63,7 +63,7 @@ def weighted_stem_onsets(
 
 
 def weighted_nmfd(
-    store: SequenceReader,
+    store: _SequenceReader,
     seq_id: str,
     weights: dict[str, float] | None = None,
     normalize: bool = False,
