@@ -298,7 +298,7 @@ def _resample_step(step: DerivedVersion, fps: float) -> tuple[CommandResult, dic
             "frames_in": int(sum(s["n_frames"] for s in sequences)),
             "frames": int(sum(s["n_frames"] for s in new_sequences)),
             "arrays": {
-                rule: sum(r == rule for r in rules.values()) for rule in set(rules.values())
+                rule: sum(r == rule for r in rules.values()) for rule in sorted(set(rules.values()))
             },
             **{table: len(rows) for table, rows in segment.items()},
             "units": 1,
