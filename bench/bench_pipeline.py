@@ -2,8 +2,9 @@
 
 1. The twin: ``dancedata synth aist bench/out/aist-full --full`` (1408 sequences, 60 songs),
    cached and rebuilt only when dancedata's synth code changes.
-2. dancedata: ``ingest aist``, ``featurize`` (default feature set: rotations; fact, stems,
-   nmfd audio) serially and with ``--workers 2``, ``segment``; and the baseline's work only
+2. dancedata: ``ingest aist`` (``--workers 2``: the pool reads pickles while the command
+   writes chunks), ``featurize`` (default feature set: rotations; fact, stems, nmfd audio)
+   serially and with ``--workers 2``, ``segment``; and the baseline's work only
    (``ingest --annotations ''``, ``featurize --no-motion --audio-families fact``, ``segment``).
    Wall time, CPU time (the command and its worker processes) and peak RSS (summed over the
    process tree, sampled every 50 ms, and of the largest process). Every featurize starts from
@@ -142,11 +143,14 @@ def cold_cache(name: str) -> dict[str, str]:
     return {"DANCEDATA_CACHE": str(folder)}
 
 
-def ingest(store: Path, *extra: str, label: str = "ingest aist") -> dict[str, Any]:
+def ingest(
+    store: Path, *extra: str, workers: int = 1, label: str = "ingest aist"
+) -> dict[str, Any]:
     shutil.rmtree(store, ignore_errors=True)
     step = measure(
-        [*DANCEDATA, "ingest", "aist", str(TWIN), "--store", str(store), "-q", "--json", *extra],
-        label,
+        [*DANCEDATA, "ingest", "aist", str(TWIN), "--store", str(store), "-q", "--json"]
+        + ["--workers", str(workers), *extra],
+        label if workers == 1 else f"{label} --workers {workers}",
     )
     step["counts"] = json.loads(step.pop("stdout"))["counts"]
     return step
@@ -276,13 +280,15 @@ def main() -> int:
     w = args.workers
     print(f"dancedata, default feature set (fact + stems + nmfd), --workers {w}:")
     parallel_store = OUT / "store-parallel"
-    parallel = {"ingest": ingest(parallel_store)}
+    parallel = {"ingest": ingest(parallel_store, workers=w)}
     parallel["featurize"] = featurize(parallel_store, w)
     parallel["segment"] = segment(parallel_store)
     print(f"dancedata, the baseline's work only (motion + FACT 35-d audio), --workers {w}:")
     lean_store = OUT / "store-lean"
     fact = {
-        "ingest": ingest(lean_store, "--annotations", "", label="ingest aist --annotations ''"),
+        "ingest": ingest(
+            lean_store, "--annotations", "", workers=w, label="ingest aist --annotations ''"
+        ),
         "featurize": featurize(
             lean_store,
             w,

@@ -185,6 +185,9 @@ def _exit(code: int) -> None:
 def run() -> None:
     """The ``dancedata`` command: :func:`main`, then :func:`_exit` with its exit code, whatever
     the path (success, error, usage, Ctrl-C, an unexpected exception's traceback)."""
+    from dancedata.exec.malloc import tune_malloc
+
+    tune_malloc()  # before any thread starts: buffers reused, not re-faulted (see the module)
     code: int = 1
     try:
         main()

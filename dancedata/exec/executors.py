@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from dancedata.errors import DancedataError
+from dancedata.exec.malloc import tune_malloc
 from dancedata.exec.numba_cache import numba_cache_base, use_slot_cache
 from dancedata.exec.storage_env import apply_storage_env, storage_env
 from dancedata.exec.threads import pin_threads, single_threaded, thread_env
@@ -83,6 +84,7 @@ def _init_worker(
     import signal
 
     signal.signal(signal.SIGINT, _quit_quietly)
+    tune_malloc()  # as the command's own process does (dancedata.exec.malloc)
     if slots is not None and numba_base is not None:
         # Before anything imports numba: a numba cache folder no other worker writes.
         # More workers than slots cannot happen in one pool; if it did, the shared cache is used.

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, Protocol
@@ -94,6 +94,18 @@ def run_tasks(build: BuildArea, jobs: Sequence[Job], executor: Executor) -> Task
     pool never idles between kinds), with one progress bar per job. Returns the results of all
     tasks, finished earlier or now."""
     report = TaskReport()
+    for _key in iter_tasks(build, jobs, executor, report):
+        pass
+    return report
+
+
+def iter_tasks(
+    build: BuildArea, jobs: Sequence[Job], executor: Executor, report: TaskReport
+) -> Iterator[str]:
+    """:func:`run_tasks` as it goes: fills ``report`` (resumed tasks first) and yields each
+    task's ``<kind>/<task id>`` once its result is in ``report.results`` (resumed ones, then
+    the others in order of completion), so a caller can use early results while a pool is
+    still running later tasks (ingest packs read batch k while the workers read k + 1...)."""
     todo: list[tuple[int, Any]] = []
     bars = []
     for j, job in enumerate(jobs):
@@ -112,21 +124,28 @@ def run_tasks(build: BuildArea, jobs: Sequence[Job], executor: Executor) -> Task
         bar.update(len(resumed))
         bars.append(bar)
     calls = [partial(_run_and_mark, build, jobs[j].kind, jobs[j].fn) for j, _ in todo]
+    finished = executor.map_unordered(_apply, list(zip(calls, [t for _, t in todo], strict=True)))
     timed: set[int] = set()
     try:
-        for index, result in executor.map_unordered(
-            _apply, list(zip(calls, [t for _, t in todo], strict=True))
-        ):
+        for job in jobs:
+            for task in job.tasks:
+                if f"{job.kind}/{task.id}" in report.results:
+                    yield f"{job.kind}/{task.id}"
+        for index, result in finished:
             j, task = todo[index]
-            report.results[f"{jobs[j].kind}/{task.id}"] = result
+            key = f"{jobs[j].kind}/{task.id}"
+            report.results[key] = result
             if j not in timed:  # the step's time counts from its first task's start
                 timed.add(j)
                 restart_clock(bars[j], result.get("_seconds", 0.0))
             bars[j].update(1)
+            yield key
     finally:
+        close = getattr(finished, "close", None)
+        if close is not None:  # a caller that stopped early: the pool's pending tasks go
+            close()
         for bar in bars:
             bar.close()
-    return report
 
 
 def _apply(call: tuple[Callable[[Any], Any], Any]) -> Any:

@@ -13,7 +13,7 @@
 4. a resumable :class:`~dancedata.store.writer.VersionWriter` (its parent: the latest version
    now); the read tasks run on the executor (serial, process pool or Dask) as resumable batches
    (:mod:`dancedata.ingest.resumable_reads`): a killed run's finished batches are not read
-   again;
+   again, and each batch is packed (step 5) as soon as it and those before it are read;
 5. ``source.open`` (a parent's frames and rows kept); in input order,
    ``source.read(task, parsed)`` → a :class:`SequenceRecord`; a DancedataError from it or from
    the parse fails the run or, with ``--on-error skip``, is recorded in the manifest's
@@ -241,7 +241,7 @@ def _write_version(
             desc=plan.read_desc,
         )
         records: list[SequenceRecord] = []
-        # reads first: it runs the read tasks (their own bar) before yielding anything
+        # reads first: it starts the read tasks (their own bar) before yielding anything
         in_order = progress(tasks, plan.sequences_desc, unit=plan.sequences_unit)
         for result, task in zip(reads, in_order, strict=True):
             try:

@@ -1,14 +1,15 @@
 """The ingest engine's reads: many inputs read as resumable tasks, handed back in order.
 
 A sequence's place in the frame-concatenated arrays is known only after the sequences before
-it have been read, so the reads run first, as tasks of ``batch_size`` items (on the serial,
+it have been read, so the reads run as tasks of ``batch_size`` items (on the serial,
 process-pool or Dask executor), each saving what it read (arrays in one raw file; the rest, and
-the file's index, in its marker) under the build area; then :class:`ResumableReads` yields the
-items in order for the engine to pack. A killed run leaves the finished batches behind, and the
-next run with the same fingerprint reads only the others. The saved reads stay until the version
-is committed (the build area goes then), so a run killed while packing reads nothing again. Bad
-input is kept per item as the error it raised (:class:`ReadResult`), so ``--on-error`` handling
-stays with the engine.
+the file's index, in its marker) under the build area, and :class:`ResumableReads` yields the
+items in order for the engine to pack: a batch as soon as it and every batch before it are
+read, so a pool reads ahead while the engine packs. A killed run leaves the finished batches
+behind, and the next run with the same fingerprint reads only the others. The saved reads
+stay until the version is committed (the build area goes then), so a run killed while packing
+reads nothing again. Bad input is kept per item as the error it raised (:class:`ReadResult`),
+so ``--on-error`` handling stays with the engine.
 
 Saved values are trees of dataclasses, numpy arrays and JSON scalars, written without pickle:
 loading rebuilds only dataclasses defined in the ``dancedata`` package, from their fields, so
@@ -29,7 +30,7 @@ import numpy as np
 
 from dancedata.errors import DancedataError, InputError
 from dancedata.exec.executors import Executor, SerialExecutor
-from dancedata.exec.tasks import Job, run_tasks
+from dancedata.exec.tasks import Job, TaskReport, iter_tasks
 from dancedata.store.build import BuildArea
 
 # Items per read task: small enough that a killed run loses little, large enough that markers
@@ -120,10 +121,14 @@ class ResumableReads:
             self.batches,
             "batch",
         )
-        report = run_tasks(self.build, [job], self.executor)
-        self.resumed = report.resumed
+        report = TaskReport()
+        finished = iter_tasks(self.build, [job], self.executor, report)
         for batch in self.batches:
-            result = report.results[f"{self.kind}/{batch.id}"]
+            key = f"{self.kind}/{batch.id}"
+            # Batch k is packed as soon as it is read, while a pool reads the next ones.
+            while key not in report.results:
+                next(finished)
+            result = report.results[key]
             records = result["records"]
             arrays = self.build.load_blob(f"out/{self.kind}/{batch.id}.bin", result["blob"])
             for record in records:
@@ -131,6 +136,9 @@ class ResumableReads:
                     yield ReadResult(error=decode_error(record["error"]))
                 else:
                     yield ReadResult(value=decode(record["value"], arrays))
+        for _key in finished:  # (no task left: closes the progress bar)
+            pass
+        self.resumed = report.resumed
 
     def counts(self) -> dict[str, int]:
         """For the manifest counts, whose keys (``units``) are part of the store format."""
