@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from dancedata.compute.audio_features import AudioFeatureConfig, beat_frames, onset_envelope
-from dancedata.compute.jit_kernels import median_network, neighbour_median, selection_network
+from dancedata.compute.jit_kernels import (
+    kl_ratio,
+    median_network,
+    neighbour_median,
+    selection_network,
+)
 from dancedata.compute.stems.offline import repetition_background, softmask
 from dancedata.synth.music import synth_dance_music
 
@@ -174,3 +179,18 @@ def test_inverse_stft_is_librosas_istft(seconds) -> None:
     np.testing.assert_array_equal(inverse(double), want)
     with pytest.raises(ValueError, match="does not fit"):
         inverse(spec[:-1])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_kl_ratio_is_numpys_maximum_then_divide(dtype) -> None:
+    """NMFD's V / max(Λ, ε) kernel gives numpy's two-step values exactly, tiny Λ included."""
+    rng = np.random.default_rng(5)
+    v = rng.random((37, 53)).astype(dtype)
+    lam = (rng.random((37, 53)) * 3.0).astype(dtype)
+    lam[::4] *= 1e-14  # below the floor
+    lam[1, :5] = 0.0
+    want = v / np.maximum(lam, 1e-12)
+    got = lam.copy()
+    kl_ratio(v.ravel(), got.ravel(), 1e-12)
+    assert got.dtype == dtype
+    np.testing.assert_array_equal(got, want)
