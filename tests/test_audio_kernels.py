@@ -143,6 +143,18 @@ def test_repetition_background_is_the_brute_force_median_of_the_nearest_frames()
         np.testing.assert_array_equal(got[:, frame], np.median(mag[:, nearest], axis=1))
 
 
+def test_repetition_background_of_a_long_clip_takes_the_same_neighbours(monkeypatch) -> None:
+    """Past the triangle's frame limit every block's full row of similarities is computed;
+    the neighbours (and so the medians) are the same as from the triangle."""
+    from dancedata.compute.stems import offline
+
+    rng = np.random.default_rng(12)
+    mag = (rng.random((64, 300)) ** 2).astype(np.float32)
+    triangle = repetition_background(mag, 4, neighbours=9, block=32)
+    monkeypatch.setattr(offline, "_TRIANGLE_FRAMES", 299)
+    np.testing.assert_array_equal(repetition_background(mag, 4, neighbours=9, block=32), triangle)
+
+
 def test_offline_stems_from_a_shared_stft_are_the_stems_from_the_signal() -> None:
     import librosa
 
@@ -174,11 +186,14 @@ def test_inverse_stft_is_librosas_istft(seconds) -> None:
         got = inverse(masked)
         assert got.dtype == want.dtype == np.float32
         np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(inverse(spec, mask), want)  # the product taken per block
     double = spec.astype(np.complex128)
     want = librosa.istft(double, n_fft=2048, hop_length=512, length=y.shape[0])
     np.testing.assert_array_equal(inverse(double), want)
     with pytest.raises(ValueError, match="does not fit"):
         inverse(spec[:-1])
+    with pytest.raises(ValueError, match="does not fit"):
+        inverse(spec, np.ones((3, 3), dtype=np.float32))
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
