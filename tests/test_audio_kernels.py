@@ -209,3 +209,30 @@ def test_kl_ratio_is_numpys_maximum_then_divide(dtype) -> None:
     kl_ratio(v.ravel(), got.ravel(), 1e-12)
     assert got.dtype == dtype
     np.testing.assert_array_equal(got, want)
+
+
+def test_stereo_mean_is_numpys_mean_bit_for_bit() -> None:
+    """The decoder's stereo downmix: np.mean's float32 bits, signed zeros included."""
+    from dancedata.io.audio_decode import stereo_mean
+
+    rng = np.random.default_rng(9)
+    scale = rng.choice([1e-30, 1e-5, 1.0, 1e5], (5000, 1))
+    block = (rng.standard_normal((5000, 2)) * scale).astype(np.float32)
+    block[:4] = [[-0.0, -0.0], [-0.0, 0.0], [0.0, -0.0], [1e-45, -1e-45]]
+    want = np.mean(block.T, axis=0)
+    got = stereo_mean(block)
+    assert got.dtype == want.dtype == np.float32
+    np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+
+
+def test_row_norms_are_numpys_column_norms_bit_for_bit() -> None:
+    """REPET-SIM's frame norms from the (frames, bins) rows: np.linalg.norm(axis=0)'s bits."""
+    from dancedata.compute.jit_kernels import row_norms
+
+    rng = np.random.default_rng(10)
+    mag = (rng.random((1025, 300)) ** 3).astype(np.float32)
+    mag[:, 7] = 0.0
+    want = np.linalg.norm(mag, axis=0)
+    got = row_norms(np.ascontiguousarray(mag.T))
+    assert got.dtype == want.dtype == np.float32
+    np.testing.assert_array_equal(got, want)

@@ -154,19 +154,18 @@ def repetition_background(
     (:func:`dancedata.compute.jit_kernels.neighbour_median`), which picks the very values a
     sort would. When no frame is far enough away, the spectrogram is its own background.
     """
-    from dancedata.compute.jit_kernels import neighbour_median
+    from dancedata.compute.jit_kernels import neighbour_median, row_norms
 
-    values = np.ascontiguousarray(mag, dtype=np.float32)
-    n = values.shape[1]
+    # (frames, bins): each neighbour is one row (no copy for a Fortran-ordered |STFT|)
+    frames = np.ascontiguousarray(np.asarray(mag, dtype=np.float32).T)
+    n = frames.shape[0]
     candidates = n - (2 * width - 1)
     if width < 1 or candidates < 1 or neighbours < 1:
-        return values.copy()
+        return np.ascontiguousarray(frames.T)
     k = min(candidates, int(neighbours))
     k -= 1 - k % 2
-    norms = np.linalg.norm(values, axis=0)
-    unit = values / np.maximum(norms, np.finfo(np.float32).tiny)
-    unit_rows = np.ascontiguousarray(unit.T)
-    frames = np.ascontiguousarray(values.T)  # (frames, bins): each neighbour is one row
+    norms = row_norms(frames)  # np.linalg.norm(mag, axis=0)'s bits
+    unit_rows = frames / np.maximum(norms, np.finfo(np.float32).tiny)[:, None]
     out = np.empty_like(frames)
     pairs = _network(k)
     # The similarity matrix is symmetric: up to _TRIANGLE_FRAMES frames only the upper
@@ -175,10 +174,13 @@ def repetition_background(
     # from a full product's by float32 rounding (BLAS does not round a·b and b·a alike);
     # no neighbour set changed on the reference tracks (tests/test_audio_reference.py).
     triangle = np.empty((n, n), dtype=np.float32) if n <= _TRIANGLE_FRAMES else None
+    unit: np.ndarray | None = None  # (bins, frames), for the full products of long clips
     with single_thread_blas():
         for start in range(0, n, block):
             stop = min(start + block, n)
             if triangle is None:
+                if unit is None:
+                    unit = np.ascontiguousarray(unit_rows.T)
                 similarity = unit_rows[start:stop] @ unit
             else:
                 rows = triangle[start:stop]
@@ -191,7 +193,7 @@ def repetition_background(
             nearest = np.argpartition(-similarity, k - 1, axis=1)[:, :k]
             # the k neighbours' median per bin, compiled: no (block, k, bins) copy to sort
             neighbour_median(frames, nearest, out, start, pairs)
-    return np.ascontiguousarray(out.T)
+    return out.T  # (bins, frames), Fortran-ordered like the |STFT| it came from
 
 
 def single_thread_blas() -> Any:
