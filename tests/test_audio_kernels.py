@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from dancedata.compute.audio_features import AudioFeatureConfig, beat_frames, onset_envelope
-from dancedata.compute.jit_kernels import median_network, neighbour_median, selection_network
+from dancedata.compute.jit_kernels import (
+    kl_ratio,
+    median_network,
+    neighbour_median,
+    selection_network,
+)
 from dancedata.compute.stems.offline import repetition_background, softmask
 from dancedata.synth.music import synth_dance_music
 
@@ -138,6 +143,18 @@ def test_repetition_background_is_the_brute_force_median_of_the_nearest_frames()
         np.testing.assert_array_equal(got[:, frame], np.median(mag[:, nearest], axis=1))
 
 
+def test_repetition_background_of_a_long_clip_takes_the_same_neighbours(monkeypatch) -> None:
+    """Past the triangle's frame limit every block's full row of similarities is computed;
+    the neighbours (and so the medians) are the same as from the triangle."""
+    from dancedata.compute.stems import offline
+
+    rng = np.random.default_rng(12)
+    mag = (rng.random((64, 300)) ** 2).astype(np.float32)
+    triangle = repetition_background(mag, 4, neighbours=9, block=32)
+    monkeypatch.setattr(offline, "_TRIANGLE_FRAMES", 299)
+    np.testing.assert_array_equal(repetition_background(mag, 4, neighbours=9, block=32), triangle)
+
+
 def test_offline_stems_from_a_shared_stft_are_the_stems_from_the_signal() -> None:
     import librosa
 
@@ -169,8 +186,53 @@ def test_inverse_stft_is_librosas_istft(seconds) -> None:
         got = inverse(masked)
         assert got.dtype == want.dtype == np.float32
         np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(inverse(spec, mask), want)  # the product taken per block
     double = spec.astype(np.complex128)
     want = librosa.istft(double, n_fft=2048, hop_length=512, length=y.shape[0])
     np.testing.assert_array_equal(inverse(double), want)
     with pytest.raises(ValueError, match="does not fit"):
         inverse(spec[:-1])
+    with pytest.raises(ValueError, match="does not fit"):
+        inverse(spec, np.ones((3, 3), dtype=np.float32))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_kl_ratio_is_numpys_maximum_then_divide(dtype) -> None:
+    """NMFD's V / max(Λ, ε) kernel gives numpy's two-step values exactly, tiny Λ included."""
+    rng = np.random.default_rng(5)
+    v = rng.random((37, 53)).astype(dtype)
+    lam = (rng.random((37, 53)) * 3.0).astype(dtype)
+    lam[::4] *= 1e-14  # below the floor
+    lam[1, :5] = 0.0
+    want = v / np.maximum(lam, 1e-12)
+    got = lam.copy()
+    kl_ratio(v.ravel(), got.ravel(), 1e-12)
+    assert got.dtype == dtype
+    np.testing.assert_array_equal(got, want)
+
+
+def test_stereo_mean_is_numpys_mean_bit_for_bit() -> None:
+    """The decoder's stereo downmix: np.mean's float32 bits, signed zeros included."""
+    from dancedata.io.audio_decode import stereo_mean
+
+    rng = np.random.default_rng(9)
+    scale = rng.choice([1e-30, 1e-5, 1.0, 1e5], (5000, 1))
+    block = (rng.standard_normal((5000, 2)) * scale).astype(np.float32)
+    block[:4] = [[-0.0, -0.0], [-0.0, 0.0], [0.0, -0.0], [1e-45, -1e-45]]
+    want = np.mean(block.T, axis=0)
+    got = stereo_mean(block)
+    assert got.dtype == want.dtype == np.float32
+    np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+
+
+def test_row_norms_are_numpys_column_norms_bit_for_bit() -> None:
+    """REPET-SIM's frame norms from the (frames, bins) rows: np.linalg.norm(axis=0)'s bits."""
+    from dancedata.compute.jit_kernels import row_norms
+
+    rng = np.random.default_rng(10)
+    mag = (rng.random((1025, 300)) ** 3).astype(np.float32)
+    mag[:, 7] = 0.0
+    want = np.linalg.norm(mag, axis=0)
+    got = row_norms(np.ascontiguousarray(mag.T))
+    assert got.dtype == want.dtype == np.float32
+    np.testing.assert_array_equal(got, want)

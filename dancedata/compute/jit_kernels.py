@@ -163,6 +163,32 @@ def divide_where_above(y: np.ndarray, norm: np.ndarray, tiny: float) -> None:
             y[i] = y[i] / norm[i]
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def kl_ratio(v: np.ndarray, approx: np.ndarray, floor: float) -> None:
+    """``approx[i] = v[i] / max(approx[i], floor)`` in place, 1-D arrays of one dtype: NMFD's
+    V / Λ in one pass instead of np.maximum then np.divide (same operations in the same dtype,
+    so the same values; ``error_model="numpy"`` drops the zero check so the loop vectorises)."""
+    tiny = approx.dtype.type(floor)
+    for i in range(approx.size):
+        x = approx[i]
+        approx[i] = v[i] / (x if x > tiny else tiny)
+
+
+@numba.njit(cache=True, nogil=True)
+def row_norms(rows: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row of a C-contiguous (n, k) array, in its dtype: the squares
+    added first to last, as ``np.linalg.norm(rows.T_as_C_order, axis=0)`` adds them (numpy
+    reduces a C-ordered axis 0 row after row), so the same bits without the transposed copy."""
+    out = np.empty(rows.shape[0], dtype=rows.dtype)
+    for i in range(rows.shape[0]):
+        row = rows[i]
+        total = row[0] * row[0]
+        for j in range(1, row.shape[0]):
+            total += row[j] * row[j]
+        out[i] = np.sqrt(total)
+    return out
+
+
 # -- beat tracking (the dynamic program of Ellis 2007, as librosa.beat.beat_track runs it) -----
 # librosa 0.11 compiles one of these loops at import without caching it (about 1-3 s per
 # process); these are the same loops, with the same arithmetic in the same order (float64, as

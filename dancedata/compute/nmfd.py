@@ -166,12 +166,20 @@ def _iterate(
     n_comp, n_frames = h.shape
     # One (K, N) buffer holds Λ and then V / Λ, in place: a fresh (K, N) array per step costs
     # more (page faults, memory traffic) than the matrix products themselves. Same numbers.
+    # V / max(Λ, ε) in one compiled pass (np.maximum alone took 3x the time of np.divide).
+    from dancedata.compute.jit_kernels import kl_ratio
+
+    if not (v.flags.c_contiguous or v.flags.f_contiguous):
+        v = np.ascontiguousarray(v)
+    # The buffer keeps V's memory order (librosa's STFTs are Fortran-ordered), which decides
+    # how BLAS runs the products into it, so their rounding is the same as before.
     ratio = np.empty_like(v)
+    v_flat, ratio_flat = v.ravel(order="K"), ratio.ravel(order="K")
 
     def ratio_of(stack: np.ndarray) -> np.ndarray:
         np.matmul(wf, stack, out=ratio)
-        np.maximum(ratio, _EPS, out=ratio)
-        return np.divide(v, ratio, out=ratio)
+        kl_ratio(v_flat, ratio_flat, _EPS)
+        return ratio
 
     for _ in range(int(n_iter)):
         if update_templates:

@@ -134,6 +134,11 @@ def softmask(x: np.ndarray, ref: np.ndarray, split_zeros: bool) -> np.ndarray:
     return softmask_square(x, ref, bool(split_zeros), float(np.finfo(x.dtype).tiny))
 
 
+# Longest clip (frames) whose whole similarity matrix is kept, float32: 4096 frames (68 s at
+# 60 fps) take 64 MB; longer clips compute every block's full row of similarities instead.
+_TRIANGLE_FRAMES = 4096
+
+
 def repetition_background(
     mag: np.ndarray, width: int, neighbours: int = 21, block: int = 128
 ) -> np.ndarray:
@@ -149,32 +154,46 @@ def repetition_background(
     (:func:`dancedata.compute.jit_kernels.neighbour_median`), which picks the very values a
     sort would. When no frame is far enough away, the spectrogram is its own background.
     """
-    from dancedata.compute.jit_kernels import neighbour_median
+    from dancedata.compute.jit_kernels import neighbour_median, row_norms
 
-    values = np.ascontiguousarray(mag, dtype=np.float32)
-    n = values.shape[1]
+    # (frames, bins): each neighbour is one row (no copy for a Fortran-ordered |STFT|)
+    frames = np.ascontiguousarray(np.asarray(mag, dtype=np.float32).T)
+    n = frames.shape[0]
     candidates = n - (2 * width - 1)
     if width < 1 or candidates < 1 or neighbours < 1:
-        return values.copy()
+        return np.ascontiguousarray(frames.T)
     k = min(candidates, int(neighbours))
     k -= 1 - k % 2
-    norms = np.linalg.norm(values, axis=0)
-    unit = values / np.maximum(norms, np.finfo(np.float32).tiny)
-    unit_rows = np.ascontiguousarray(unit.T)
-    frames = np.ascontiguousarray(values.T)  # (frames, bins): each neighbour is one row
+    norms = row_norms(frames)  # np.linalg.norm(mag, axis=0)'s bits
+    unit_rows = frames / np.maximum(norms, np.finfo(np.float32).tiny)[:, None]
     out = np.empty_like(frames)
     pairs = _network(k)
+    # The similarity matrix is symmetric: up to _TRIANGLE_FRAMES frames only the upper
+    # triangle is computed (each block of rows against itself and the later frames, the
+    # earlier columns copied from the rows above: half the products). Its entries differ
+    # from a full product's by float32 rounding (BLAS does not round a·b and b·a alike);
+    # no neighbour set changed on the reference tracks (tests/test_audio_reference.py).
+    triangle = np.empty((n, n), dtype=np.float32) if n <= _TRIANGLE_FRAMES else None
+    unit: np.ndarray | None = None  # (bins, frames), for the full products of long clips
     with single_thread_blas():
         for start in range(0, n, block):
             stop = min(start + block, n)
-            similarity = unit_rows[start:stop] @ unit
+            if triangle is None:
+                if unit is None:
+                    unit = np.ascontiguousarray(unit_rows.T)
+                similarity = unit_rows[start:stop] @ unit
+            else:
+                rows = triangle[start:stop]
+                np.matmul(unit_rows[start:stop], unit_rows[start:].T, out=rows[:, start:])
+                rows[:, :start] = triangle[:start, start:stop].T
+                similarity = rows.copy()
             for row in range(stop - start):  # frames closer than ``width`` are not neighbours
                 frame = start + row
                 similarity[row, max(0, frame - width + 1) : frame + width] = -np.inf
             nearest = np.argpartition(-similarity, k - 1, axis=1)[:, :k]
             # the k neighbours' median per bin, compiled: no (block, k, bins) copy to sort
             neighbour_median(frames, nearest, out, start, pairs)
-    return np.ascontiguousarray(out.T)
+    return out.T  # (bins, frames), Fortran-ordered like the |STFT| it came from
 
 
 def single_thread_blas() -> Any:
@@ -273,7 +292,7 @@ def separate(
         spec = stft
     masks = stem_masks(np.abs(spec), sr, **params)
     inverse = InverseSTFT(n_fft, hop, mono.shape[-1], spec.shape[-1])
-    return {name: inverse(spec * masks[name]).astype(np.float32) for name in STEM_NAMES}
+    return {name: inverse(spec, masks[name]).astype(np.float32) for name in STEM_NAMES}
 
 
 class InverseSTFT:
@@ -307,8 +326,11 @@ class InverseSTFT:
         )
         self.norm = np.ascontiguousarray(librosa.util.fix_length(norm[half:], size=self.length))
 
-    def __call__(self, spectrum: np.ndarray) -> np.ndarray:
-        """The float32 signal of one complex64 spectrum (bins, frames)."""
+    def __call__(self, spectrum: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+        """The float32 signal of one complex64 spectrum (bins, frames), times ``mask`` (same
+        shape) when given: the product is taken block by block in the frames-first order the
+        inverse FFTs read (the same products as ``spectrum * mask``, without a (bins, frames)
+        temporary in the other memory order)."""
         import librosa
 
         from dancedata.compute.jit_kernels import divide_where_above, overlap_add
@@ -319,14 +341,22 @@ class InverseSTFT:
                 f"spectrum of shape {spec.shape} does not fit a {self.n_fft}-point STFT of "
                 f"{self.frames} frames"
             )
-        if spec.dtype != np.complex64:  # librosa's own path for double precision
+        if mask is not None and mask.shape != spec.shape:
+            raise ValueError(f"mask of shape {mask.shape} does not fit spectrum {spec.shape}")
+        if spec.dtype != np.complex64 or (mask is not None and mask.dtype != np.float32):
+            if mask is not None:  # librosa's own path for double precision
+                spec = spec * mask
             return librosa.istft(spec, hop_length=self.hop, n_fft=self.n_fft, length=self.length)
         irfft = librosa.get_fftlib().irfft
         y = np.zeros(self.length, dtype=np.float32)
         rows = spec.T  # (frames, bins): each frame's inverse FFT is one contiguous row
+        mask_rows = None if mask is None else mask.T
         for first in range(0, self.frames, self._BLOCK):
             stop = min(first + self._BLOCK, self.frames)
-            block = np.ascontiguousarray(irfft(rows[first:stop], n=self.n_fft, axis=-1))
+            part = rows[first:stop]
+            if mask_rows is not None:
+                part = part * mask_rows[first:stop]
+            block = np.ascontiguousarray(irfft(part, n=self.n_fft, axis=-1))
             overlap_add(y, block, self.window, first, self.hop, self.n_fft // 2)
         divide_where_above(y, self.norm, float(np.finfo(np.float32).tiny))
         return y
