@@ -134,3 +134,36 @@ def test_the_stem_backend_is_an_object_chosen_once() -> None:
         _ = AudioSettings(stems="none").stem_backend
     with pytest.raises(InputError, match=r"unknown option\(s\) for stem backend 'offline': bogus"):
         offline.config(bogus=1)
+
+
+def test_an_ingest_resolves_its_store_once(ingested: Path, tmp_path: Path) -> None:
+    """ingest aist --fps: the ingest (lock, engine, writer) and the resample after it share the
+    handle made from the path; the only other resolution is the build area's, the plain-data
+    locator the read workers reopen (in this process too: the serial executor runs them here).
+    A repeat (nothing to do) resolves the path once."""
+    from dancedata.ingest.aist import Options
+    from dancedata.store.backend import StoreBackend
+
+    raw = ingested.parent / "raw"
+    store = tmp_path / "store"
+    paths: list[str] = []
+
+    def profile(frame: Any, event: str, arg: Any) -> None:
+        code = frame.f_code
+        ours = code.co_name == "make_backend" and code.co_filename.endswith("backend_open.py")
+        if event == "call" and ours and not isinstance(frame.f_locals["store"], StoreBackend):
+            paths.append(str(frame.f_locals["store"]))
+
+    sys.setprofile(profile)
+    try:
+        result = Options(raw=raw, store=str(store), fps=20.0).run()
+        first = list(paths)
+        again = Options(raw=raw, store=str(store)).run()
+    finally:
+        sys.setprofile(None)
+    assert result.created and result.version == "v2" and result.counts["ingest_version"] == "v1"
+    assert first.count(str(store)) == 1  # before: 7 (measured at 9112cc3)
+    assert all(Path(p).parent == store / "versions" for p in first if p != str(store))
+    assert all(Path(p).name.startswith(".tmp-") for p in first if p != str(store))
+    assert not again.created and again.version == "v1"
+    assert paths[len(first) :] == [str(store)]

@@ -130,7 +130,9 @@ def resample(store: str | Path | StoreBackend, options: ResampleOptions) -> Comm
     )
 
 
-def resample_version(store: str | Path, fps: float, version: str | None = None) -> CommandResult:
+def resample_version(
+    store: str | Path | StoreBackend, fps: float, version: str | None = None
+) -> CommandResult:
     """:func:`resample` without the featurize step (the resampled version only)."""
     return resample(store, ResampleOptions(fps=fps, version=version, featurize=False))
 

@@ -60,6 +60,8 @@ from dancedata.ingest.source import (
 )
 from dancedata.progress import progress
 from dancedata.store.arrays import FrameArrayWriter
+from dancedata.store.backend import StoreBackend
+from dancedata.store.backend_open import make_backend
 from dancedata.store.checksums import fingerprint
 from dancedata.store.command_result import CommandResult
 from dancedata.store.contract import build_table
@@ -173,9 +175,11 @@ def sequence_row(record: SequenceRecord, music: dict[str, Any] | None) -> dict[s
     return row
 
 
-def ingest(store: str | Path, source: Source) -> CommandResult:
+def ingest(store: str | Path | StoreBackend, source: Source) -> CommandResult:
     """Ingest what ``source`` plans into a new version of ``store`` (see the module docstring);
-    a "nothing to do" result when a committed version already holds it."""
+    a "nothing to do" result when a committed version already holds it. A path is resolved
+    into its backend once, here; the source's hooks, the lock and the writer take that."""
+    store = make_backend(store)
     checksums = InputChecksums()
     skips = SkipPolicy(source.on_error)
     plan = source.plan(store, checksums, skips)
@@ -199,7 +203,7 @@ def ingest(store: str | Path, source: Source) -> CommandResult:
 
 
 def _write_version(
-    store: str | Path,
+    store: StoreBackend,
     source: Source,
     plan: IngestPlan,
     tasks: list[ReadTask],

@@ -97,10 +97,12 @@ def ingest_into(store: Any, name: str, *inputs: Any) -> Any:
     first ingest fails."""
     from dancedata.ingest.engine import ingest
     from dancedata.ingest.registry import source_named
+    from dancedata.store.backend_open import make_backend
     from dancedata.store.first_write import remove_store_if_left_empty
 
-    with remove_store_if_left_empty(store):  # a failed first ingest leaves no empty store
-        return ingest(store, source_named(name)(*inputs))
+    handle = make_backend(store)  # resolved once: the engine, the lock and the source share it
+    with remove_store_if_left_empty(handle):  # a failed first ingest leaves no empty store
+        return ingest(handle, source_named(name)(*inputs))
 
 
 def source_exports(package: str) -> Any:

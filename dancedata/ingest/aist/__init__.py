@@ -85,11 +85,14 @@ class Options(IngestOptions):
             workers=self.workers,
             dask=self.dask,
         )
-        result = ingest_into(self.store, "aist", self.raw, options)
+        from dancedata.store.backend_open import make_backend
+
+        store = make_backend(self.store)  # one handle for the ingest and the resample after it
+        result = ingest_into(store, "aist", self.raw, options)
         if target_fps is not None and target_fps != AIST_FPS:
             from dancedata.featurize.resample_store import resample_version
 
             ingested = result.version
-            result = resample_version(self.store, target_fps, version=ingested)
+            result = resample_version(store, target_fps, version=ingested)
             result.counts = {**(result.counts or {}), "ingest_version": ingested}
         return result

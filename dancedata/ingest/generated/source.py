@@ -322,7 +322,7 @@ def _check_file_size(path: Path, mode: int, max_frames: int) -> None:
 
 def _resolved(path: str | Path) -> Path | None:
     try:
-        return Path(path).resolve()
+        return Path(str(path)).resolve()  # (a backend's str is its path as given)
     except (OSError, RuntimeError):
         return None
 
