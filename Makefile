@@ -114,7 +114,7 @@ fuzz: $(DEV_STAMP)
 # grows as packages are made clean (tests/test_tooling.py checks that the mypy hook of
 # .pre-commit-config.yaml lists the same). The stems stamp installs torch, which the checked code
 # imports.
-MYPY_PATHS := dancedata/io dancedata/compute dancedata/store
+MYPY_PATHS := dancedata/io dancedata/compute dancedata/ops dancedata/store
 lint: $(DEV_STAMP) $(STEMS_STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .

@@ -21,7 +21,7 @@ from dancedata.io.bvh import (
     read_bvh,
     root_translation,
 )
-from dancedata.io.bvh_ops import world_positions
+from dancedata.ops.bvh_clip import world_positions
 
 # file, joints, channels, frames, frame time (as printed), nominal fps, End Sites, orders
 REAL_FILES = [

@@ -24,7 +24,7 @@ from dancedata.io.bvh import (
     scale_clip,
     write_bvh,
 )
-from dancedata.io.bvh_ops import clip_from_rotations, local_rotmats, world_positions
+from dancedata.ops.bvh_clip import clip_from_rotations, local_rotmats, world_positions
 
 NAMES = [
     "01_01.bvh",

@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 import dancedata
-from dancedata.io.smpl_skeletons import smpl_skeleton
 from dancedata.metrics import motion_feature_matrix
 from dancedata.metrics.beats import beat_frames
+from dancedata.ops.smpl_skeletons import smpl_skeleton
 from tests.helpers import run_cli
 from tests.test_metrics_reference import (
     ref_bailando_ba,

@@ -21,7 +21,7 @@ from dancedata.featurize.featurize import FeaturizeOptions, featurize
 from dancedata.ingest.aist import AistIngestOptions, ingest_aist
 from dancedata.ingest.bvh import BvhIngestOptions, ingest_bvh
 from dancedata.io.bvh import euler_degrees, local_translations, read_bvh
-from dancedata.io.bvh_ops import local_rotmats, world_positions
+from dancedata.ops.bvh_clip import local_rotmats, world_positions
 from dancedata.store.reader import _VersionReader
 from dancedata.synth.aist import synth_aist
 from tests.helpers import run_cli
@@ -117,7 +117,7 @@ def test_smpl_store_exports_a_generated_layout(tmp_path: Path) -> None:
 
     # Without a model: the built-in edge_smpl_offsets skeleton, named; the file's joints are
     # that skeleton's forward kinematics (root at the translation).
-    from dancedata.io.smpl_skeletons import smpl_skeleton
+    from dancedata.ops.smpl_skeletons import smpl_skeleton
 
     summary = cli("export", "bvh", str(store), seq["seq_id"], str(tmp_path / "edge.bvh"))
     assert summary["offsets_from"].startswith("edge_smpl_offsets")

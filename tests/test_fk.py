@@ -16,7 +16,7 @@ from dancedata.compute.fk import (
     world_transforms,
 )
 from dancedata.io.bvh import BvhClip, BvhSkeleton, local_translations, read_bvh
-from dancedata.io.bvh_ops import clip_from_rotations, local_rotmats, world_positions
+from dancedata.ops.bvh_clip import clip_from_rotations, local_rotmats, world_positions
 
 
 def _reference_fk(clip: BvhClip, frame: int) -> tuple[np.ndarray, list[np.ndarray]]:

@@ -33,8 +33,8 @@ from dancedata.errors import InputError
 from dancedata.featurize.families.motion import MotionBatch, MotionSettings
 from dancedata.featurize.families.motion_ik import RotationsFromPositionsFamily
 from dancedata.io.bvh import read_bvh
-from dancedata.io.bvh_ops import world_positions
 from dancedata.io.openpose import BODY_25, COCO_18
+from dancedata.ops.bvh_clip import world_positions
 from dancedata.store.reader import _VersionReader
 from tests.helpers import run_cli
 

@@ -4,20 +4,20 @@ upward import; the folders are the layers.
 Allowed direction, lowest first (a module may import its own layer and the layers below it,
 never one above):
 
-    foundation → compute → io → methods → store → exec → read → steps → study → api → cli
+    foundation → io → compute → ops → methods → store → exec → read → steps → study → api → cli
 
 * Every module takes the layer of its top folder (:data:`LAYER_OF`): a new module in a folder
   needs no entry; a new folder does, with its reason. Only the foundation modules
   (``errors``, ``progress``, ``_version``) sit loose in ``dancedata/``
   (:func:`test_only_foundation_modules_are_loose`).
-* foundation imports nothing of dancedata; compute is pure array code (no files, no formats);
-  io parses and writes files, on compute's array functions (the BVH clip operations, the choice
-  of SMPL skeleton from a model file); methods and metrics are the pure keyframe,
-  in-betweening and scoring code; store persists; exec runs work units; read reads stores; the
-  steps (ingest, featurize, synth, export, viz) write stores or files from them; study runs
-  keyframes, evaluations and experiments over stores with the methods and metrics; api is
-  ``dancedata/__init__`` (``open_store``); the CLI is a thin shell. ``dancedata/`` never
-  imports ``cli``.
+* foundation imports nothing of dancedata; io parses and writes files; compute is pure array
+  code (no files, no formats) and imports nothing of io; ops is where the two meet (the BVH
+  clip operations on compute's FK and resampling, the SMPL skeleton from a model file);
+  methods and metrics are the pure keyframe, in-betweening and scoring code; store persists;
+  exec runs work units; read reads stores; the steps (ingest, featurize, synth, export, viz)
+  write stores or files from them; study runs keyframes, evaluations and experiments over
+  stores with the methods and metrics; api is ``dancedata/__init__`` (``open_store``); the CLI
+  is a thin shell. ``dancedata/`` never imports ``cli``.
 * Sideways: featurize and study do not reach into ingest (they read what it wrote through the
   store), although they share or sit above its layer.
 * Packages: the graph collapsed onto the children of every package (each subpackage one node)
@@ -56,8 +56,9 @@ SOURCES = ((REPO / "dancedata", "dancedata"), (REPO / "cli", "dancedata.cli"))
 
 LAYERS: tuple[str, ...] = (
     "foundation",
-    "compute",
     "io",
+    "compute",
+    "ops",
     "methods",
     "store",
     "exec",
@@ -76,6 +77,7 @@ LAYER_OF: dict[str, tuple[str, str]] = {
     "dancedata.progress": ("foundation", "console progress lines for any layer; imports nothing"),
     "dancedata.io": ("io", "file formats: parse and write files (BVH, AIST++, audio, SMPL, ...)"),
     "dancedata.compute": ("compute", "pure array-in, array-out functions (FK, IK, features, ...)"),
+    "dancedata.ops": ("ops", "a parsed file meets the maths: BVH clip FK, SMPL skeleton"),
     "dancedata.methods": ("methods", "keyframe selection, in-betweening, Bézier: pure arrays"),
     "dancedata.metrics": ("methods", "the metrics: pure, arrays in, MetricResult out"),
     "dancedata.store": ("store", "the versioned Zarr + Parquet store: layout, writer, reader"),

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from dancedata.io.bvh import BvhClip, BvhSkeleton, read_bvh, write_bvh
-from dancedata.io.bvh_ops import world_positions
+from dancedata.ops.bvh_clip import world_positions
 from dancedata.store.layout import StoreLayout
 from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import validate_store

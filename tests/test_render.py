@@ -259,7 +259,7 @@ def test_smpl_joints_with_a_model_file(aist_store: Path, tmp_path: Path) -> None
     assert len(decode(out)["frames"]) == 30
     # Without the model, the SMPL source draws the built-in edge_smpl_offsets skeleton, named
     # in the panel's label (its numbers: tests/test_smpl_skeleton.py).
-    from dancedata.io.smpl_skeletons import smpl_skeleton
+    from dancedata.ops.smpl_skeletons import smpl_skeleton
 
     builtin = load_skeleton(ds, seq, source="smpl")
     assert builtin.source == "smpl" and "edge_smpl_offsets" in builtin.label

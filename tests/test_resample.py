@@ -20,7 +20,7 @@ from dancedata.compute.resample import (
     slerp,
 )
 from dancedata.io.bvh import euler_degrees, read_bvh
-from dancedata.io.bvh_ops import local_rotmats, resample_clip
+from dancedata.ops.bvh_clip import local_rotmats, resample_clip
 
 
 def _random_motion(n_frames: int, n_joints: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -23,7 +23,7 @@ from dancedata.compute.smpl_skeleton import (
     SMPL24_PARENTS,
 )
 from dancedata.errors import InputError
-from dancedata.io.smpl_skeletons import skeleton_name, smpl_skeleton
+from dancedata.ops.smpl_skeletons import skeleton_name, smpl_skeleton
 from dancedata.store.reader import _VersionReader
 from tests.helpers import run_cli
 

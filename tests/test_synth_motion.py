@@ -18,9 +18,9 @@ from scipy.spatial.transform import Rotation
 from dancedata.compute.motion_features import beat_align_score_mint, motion_beats_mint
 from dancedata.io.aist import read_motion
 from dancedata.io.aist_names import music_bpm
-from dancedata.io.smpl_skeletons import smpl_skeleton
 from dancedata.metrics import fid
 from dancedata.metrics.fid import motion_feature_matrix
+from dancedata.ops.smpl_skeletons import smpl_skeleton
 from dancedata.synth.catalog import FPS, demo_plan, stable_seed
 from dancedata.synth.motion import (
     ACCENT_PEAK_S,

@@ -4,7 +4,7 @@ A BVH channel list ``Zrotation Xrotation Yrotation`` means ``R = Rz @ Rx @ Ry``,
 intrinsic ``from_euler("ZXY", [z, x, y], degrees=True)``; each joint has its own order string.
 These functions take and return arrays only (angles in degrees unless named ``_rad``), so they
 import nothing of dancedata but compute/ (issue 15 item 3: formats parse, operations compute);
-the clip-level operations built on them are in :mod:`dancedata.io.bvh_ops`.
+the clip-level operations built on them are in :mod:`dancedata.ops.bvh_clip`.
 """
 
 from __future__ import annotations

@@ -49,7 +49,7 @@ from dancedata.io.bvh import (
     write_bvh,
 )
 from dancedata.io.bvh_attrs import is_bvh_skeleton, skeleton_from_attrs
-from dancedata.io.bvh_ops import clip_from_rotations
+from dancedata.ops.bvh_clip import clip_from_rotations
 from dancedata.read.sequence_reader import known_ids
 from dancedata.store.backend import StoreBackend
 from dancedata.store.reader import _VersionReader
@@ -170,7 +170,7 @@ def _rest_offsets(
     """Rest OFFSETs (metres) of a skeleton without a channel layout, and their source."""
     from dancedata.compute.smpl import SMPL_JOINTS
     from dancedata.io.smpl_model import SMPL_MODEL_ENV
-    from dancedata.io.smpl_skeletons import smpl_skeleton
+    from dancedata.ops.smpl_skeletons import smpl_skeleton
 
     n = len(skel_attrs["joints"])
     if skel_attrs.get("offsets") is not None:

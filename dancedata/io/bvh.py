@@ -27,7 +27,7 @@ converts lengths, e.g. to metres for a store.
 
 This module parses and writes only (it imports nothing of dancedata above ``errors`` and
 ``io``): rotations, forward kinematics, export angles and resampling of a clip are in
-:mod:`dancedata.io.bvh_ops` (on the array functions of :mod:`dancedata.compute`).
+:mod:`dancedata.ops.bvh_clip` (on the array functions of :mod:`dancedata.compute`).
 """
 
 from __future__ import annotations

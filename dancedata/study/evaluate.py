@@ -10,7 +10,7 @@ Assumptions, recorded in the record: generated motion runs at the store's frame 
 beside ground-truth frame i, in SMPL's frame (metres, y up). On SMPL-24 stores ground-truth
 positions come from forward kinematics of the stored rotations about the run's rest skeleton:
 ``smpl_model`` when given, else the built-in ``edge_smpl_offsets``
-(:mod:`dancedata.io.smpl_skeletons`); generated rotations are posed the same way (a file
+(:mod:`dancedata.ops.smpl_skeletons`); generated rotations are posed the same way (a file
 holding positions only is used as it is). The skeleton is recorded in ``config.skeleton`` and in the
 convention of every metric computed from positions. Other stores: ``smpl_model`` if given,
 else the store's ``motion/positions``. Music beats are the store's ``audio/beats`` (librosa
@@ -39,7 +39,6 @@ from dancedata.io.generated_motion import (
     generated_frame_limit,
     read_generated_motion,
 )
-from dancedata.io.smpl_skeletons import smpl_skeleton
 from dancedata.metrics.beats import beat_frames
 from dancedata.metrics.evaluate_inputs import (
     axis_angle_euler,
@@ -49,6 +48,7 @@ from dancedata.metrics.evaluate_inputs import (
     resample_generated,
     z_up_to_y_up,
 )
+from dancedata.ops.smpl_skeletons import smpl_skeleton
 from dancedata.read.loader import DanceStore, open_store
 from dancedata.store.checksums import canonical_json, sha256_file
 from dancedata.study.metric_registry import (

@@ -18,7 +18,7 @@ its ``score_reconstructions``):
   paired_gt``), one feature vector per sequence or per measure (``fid_unit``). Positions are
   forward kinematics about an SMPL model file's rest joints (``metrics.smpl_model``, default
   ``$DANCEDATA_SMPL_MODEL``) or, without one, the built-in ``edge_smpl_offsets`` skeleton
-  (:mod:`dancedata.io.smpl_skeletons`); the skeleton is in every FID row's ``variant`` and in
+  (:mod:`dancedata.ops.smpl_skeletons`); the skeleton is in every FID row's ``variant`` and in
   the record's ``conventions.skeleton``, and enters the run id.
 
 Rows whose inputs are missing (no audio / stems / NMFD for a peak strategy, fewer than 2 FID
@@ -248,7 +248,7 @@ def _score_cell(cell: ReconstructionCell, metrics: list[str], reason: str | None
 def _smpl_model(config: ExperimentConfig, override: str | Path | None) -> tuple[Any, str | None]:
     """(the rest skeleton of the FID positions, None): the model file of ``--smpl-model`` or
     ``metrics.smpl_model`` when given, else the built-in ``edge_smpl_offsets``."""
-    from dancedata.io.smpl_skeletons import smpl_skeleton
+    from dancedata.ops.smpl_skeletons import smpl_skeleton
 
     path = Path(override) if override else config.smpl_model_path()
     return smpl_skeleton(path), None

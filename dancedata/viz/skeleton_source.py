@@ -5,7 +5,7 @@ Sources, and the order ``source="auto"`` tries them in:
 1. ``smpl``: SMPL joints (24, metres, y-up) posed from ``motion/axis_angle`` and ``motion/trans``
    about an SMPL model file's rest joints (``smpl_model``; :mod:`dancedata.io.smpl_model`) or,
    without one, the built-in ``edge_smpl_offsets`` skeleton
-   (:mod:`dancedata.io.smpl_skeletons`).
+   (:mod:`dancedata.ops.smpl_skeletons`).
    Chosen first when a model is given and the store's skeleton is SMPL-24; without a model,
    after ``keypoints3d`` and ``positions`` (before ``fk`` and ``pose2d``).
 2. ``keypoints3d``: AIST++ COCO-17 keypoints (metres, y-up; NaN where not triangulated).
@@ -174,7 +174,7 @@ def load_skeleton(
     axis_angle = _slice(store, seq_id, "axis_angle")
     trans = _slice(store, seq_id, "trans")
     if source == "smpl":
-        from dancedata.io.smpl_skeletons import smpl_skeleton
+        from dancedata.ops.smpl_skeletons import smpl_skeleton
 
         rest = smpl_skeleton(smpl_model)  # a model file wins; else edge_smpl_offsets
         positions = rest.positions(axis_angle, trans)
@@ -226,7 +226,7 @@ def _smpl_generated(
     poses: np.ndarray, trans: np.ndarray, smpl_model: str | Path | None, path: Path
 ) -> np.ndarray:
     """SMPL rotations → joints about the model file's rest joints, else edge_smpl_offsets."""
-    from dancedata.io.smpl_skeletons import smpl_skeleton
+    from dancedata.ops.smpl_skeletons import smpl_skeleton
 
     poses = np.asarray(poses, dtype=np.float64)
     if poses.ndim < 2 or poses[0].size != 72:

@@ -37,7 +37,7 @@ from dancedata.featurize.families.motion_base import (
 from dancedata.featurize.family import register_family
 from dancedata.featurize.source_arrays import source_array
 from dancedata.io.smpl_model import SMPL_MODEL_HELP
-from dancedata.io.smpl_skeletons import skeleton_name, smpl_skeleton
+from dancedata.ops.smpl_skeletons import skeleton_name, smpl_skeleton
 
 __all__ = ["PositionsFamily", "smpl_model_identity"]
 

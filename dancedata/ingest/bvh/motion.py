@@ -11,7 +11,7 @@ Order of operations (each optional step recorded in the manifest config):
    decimation also acts as an anti-alias filter. Euler channels are then re-derived on the
    branch nearest the original curves (winding kept). Translations are not smoothed;
 4. resample (``--fps``): exact decimation for an integer rate ratio, SLERP otherwise
-   (:func:`~dancedata.io.bvh_ops.resample_clip`);
+   (:func:`~dancedata.ops.bvh_clip.resample_clip`);
 5. arrays, all float64 here (the store keeps float32): ``euler`` (radians, each joint's own
    order), ``axis_angle``, ``trans`` (root position, metres), ``positions`` (FK, metres) and,
    for rigs with position channels on non-root joints, ``local_translations`` (each joint's
@@ -40,7 +40,7 @@ from dancedata.io.bvh import (
     root_translation,
     scale_clip,
 )
-from dancedata.io.bvh_ops import (
+from dancedata.ops.bvh_clip import (
     clip_from_rotations,
     local_rotmats,
     resample_clip,
