@@ -183,31 +183,42 @@ def _exit(code: int) -> None:
 
 
 def run() -> None:
-    """The ``dancedata`` command: :func:`main`, then :func:`_exit` with its exit code, whatever
-    the path (success, error, usage, Ctrl-C, an unexpected exception's traceback)."""
+    """The ``dancedata`` command: :func:`exit_code`, then :func:`_exit` with it, whatever the
+    path (success, error, usage, Ctrl-C, an unexpected exception's traceback)."""
     from dancedata.exec.malloc import tune_malloc
 
     tune_malloc()  # before any thread starts: buffers reused, not re-faulted (see the module)
-    code: int = 1
+    code = 1
     try:
-        main()
-        code = 0
-    except SystemExit as exc:
-        if exc.code is None or isinstance(exc.code, int):
-            code = exc.code or 0
-        else:  # sys.exit("message"): Python prints it and exits 1
-            print(exc.code, file=sys.stderr)
-            code = 1
-    except KeyboardInterrupt:
-        code = EXIT_INTERRUPTED
-    except BrokenPipeError:  # the reader of stdout went away (`| head`): nothing to say
-        code = 1
-    except BaseException:
+        code = exit_code()
+    except BaseException:  # not an Exception (GeneratorExit, ...): still a traceback and 1
         import traceback
 
         traceback.print_exc()
-        code = 1
     _exit(code)
+
+
+def exit_code() -> int:
+    """Run :func:`main` on ``sys.argv`` and return the exit code the process ends with: 0, the
+    code of a ``SystemExit``, 130 for Ctrl-C, 1 after printing an unexpected traceback. Apart
+    from :func:`run` so that a caller in the same interpreter (the tests) gets the code."""
+    try:
+        main()
+        return 0
+    except SystemExit as exc:
+        if exc.code is None or isinstance(exc.code, int):
+            return exc.code or 0
+        print(exc.code, file=sys.stderr)  # sys.exit("message"): Python prints it and exits 1
+        return 1
+    except KeyboardInterrupt:
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # the reader of stdout went away (`| head`): nothing to say
+        return 1
+    except Exception:
+        import traceback
+
+        traceback.print_exc()
+        return 1
 
 
 def _short_path(name: object) -> str:

@@ -2,32 +2,111 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
+import signal
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 def run_cli(
-    *args: str, check: bool = True, env: dict[str, str] | None = None, timeout: float = 600
+    *args: str,
+    check: bool = True,
+    env: dict[str, str] | None = None,
+    timeout: float | None = None,
+    isolated: bool = False,
 ) -> subprocess.CompletedProcess:
-    """Run ``dancedata ARGS`` in a subprocess with this interpreter."""
-    full_env = {**os.environ, **(env or {})}
-    proc = subprocess.run(
-        [sys.executable, "-m", "dancedata.cli", *args],
-        capture_output=True,
-        text=True,
-        env=full_env,
-        timeout=timeout,
-    )
+    """Run ``dancedata ARGS`` and return its exit code, stdout and stderr.
+
+    In this interpreter by default (:func:`run_cli_in_process`): the command's own code path,
+    without the ~1 s of interpreter start and imports a subprocess pays per call. In a
+    subprocess of this interpreter (:func:`run_cli_subprocess`) when the test asks for what only
+    a process gives: ``isolated=True``, an ``env`` (start-up variables such as PATH or
+    PYTHONPATH, credentials that cached filesystem objects would not see), or a ``timeout`` (a
+    hang that must end in a failure, not stall the suite)."""
+    if isolated or env is not None or timeout is not None:
+        proc = run_cli_subprocess(*args, env=env, timeout=600 if timeout is None else timeout)
+    else:
+        proc = run_cli_in_process(*args)
     if check and proc.returncode != 0:
         raise AssertionError(
             f"dancedata {' '.join(args)} exited {proc.returncode}\n"
             f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
         )
     return proc
+
+
+def run_cli_subprocess(
+    *args: str, env: dict[str, str] | None = None, timeout: float = 600
+) -> subprocess.CompletedProcess:
+    """``python -m dancedata.cli ARGS`` in a subprocess with this interpreter."""
+    return subprocess.run(
+        [sys.executable, "-m", "dancedata.cli", *args],
+        capture_output=True,
+        text=True,
+        env={**os.environ, **(env or {})},
+        timeout=timeout,
+    )
+
+
+def _text_of(stream: io.BytesIO) -> str:
+    """What ``subprocess.run(text=True)`` makes of the bytes: UTF-8, universal newlines."""
+    return stream.getvalue().decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
+
+
+def run_cli_in_process(*args: str) -> subprocess.CompletedProcess:
+    """``dancedata ARGS`` through :func:`dancedata.cli.main.exit_code` in this interpreter.
+
+    What a subprocess would see is reproduced: ``sys.argv``; stdout and stderr as UTF-8 text
+    streams that are not terminals, read back as ``subprocess.run(text=True)`` would; warnings
+    printed to that stderr under a fresh interpreter's filters (not collected by pytest); the
+    process-wide quiet flag, the environment, the working folder and the signal handlers put
+    back afterwards."""
+    from dancedata.cli.main import exit_code
+
+    from dancedata.progress import set_quiet
+
+    out, err = io.BytesIO(), io.BytesIO()
+    stdout = io.TextIOWrapper(out, encoding="utf-8", write_through=True)
+    stderr = io.TextIOWrapper(err, encoding="utf-8", write_through=True)
+    saved_argv, saved_env, saved_cwd = sys.argv, dict(os.environ), os.getcwd()
+    saved_handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
+        stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+    sys.argv = ["dancedata", *args]
+    try:
+        with (
+            contextlib.redirect_stdout(stdout),
+            contextlib.redirect_stderr(stderr),
+            warnings.catch_warnings(),
+        ):
+            warnings.resetwarnings()  # then the filters a fresh `python` starts with
+            for category in (ResourceWarning, ImportWarning, PendingDeprecationWarning):
+                warnings.simplefilter("ignore", category)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            warnings.filterwarnings("default", category=DeprecationWarning, module="__main__")
+            warnings.showwarning = show
+            code = exit_code()
+            stdout.flush()
+            stderr.flush()
+    finally:
+        sys.argv = saved_argv
+        if os.environ != saved_env:
+            os.environ.clear()
+            os.environ.update(saved_env)
+        os.chdir(saved_cwd)
+        for sig, handler in saved_handlers.items():
+            if handler is not None:
+                signal.signal(sig, handler)
+        set_quiet(False)
+    return subprocess.CompletedProcess(["dancedata", *args], code, _text_of(out), _text_of(err))
 
 
 def importorskip_unless_ci(name: str):  # noqa: ANN201 - the imported module
