@@ -9,7 +9,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DEV_STAMP := $(VENV)/.installed-dev
 # The optional OpenUnmix stack (the 'stems' extra), pinned to builds that load together; `make
-# test` installs it once (its own stamp) so tests/test_stems_openunmix.py runs instead of skipping.
+# test` installs it once (its own stamp) so tests/compute/test_stems_openunmix.py runs instead of skipping.
 STEMS_STAMP := $(VENV)/.installed-stems
 STEMS_PINS ?= torch==2.14.1 torchaudio==2.11.0 openunmix==1.3.0
 # An extra package index for the stems stack, e.g. PyTorch's CPU-only builds on a machine without
@@ -111,7 +111,7 @@ fuzz: $(DEV_STAMP)
 	$(PY) fuzz/run.py --minutes $(FUZZ_MINUTES) $(FUZZ_ARGS)
 
 # ruff on the whole tree; mypy (settings in pyproject.toml) on the packages of MYPY_PATHS, which
-# grows as packages are made clean (tests/test_tooling.py checks that the mypy hook of
+# grows as packages are made clean (tests/project/test_tooling.py checks that the mypy hook of
 # .pre-commit-config.yaml lists the same). The stems stamp installs torch, which the checked code
 # imports.
 MYPY_PATHS := dancedata/io dancedata/compute dancedata/ops dancedata/store
@@ -121,7 +121,7 @@ lint: $(DEV_STAMP) $(STEMS_STAMP)
 	$(BIN)/mypy $(MYPY_PATHS)
 
 # The arrays and extension_arrays of schemas/store.schema.json, from the arrays the code declares
-# (tests/test_family_framework.py fails when the committed file differs).
+# (tests/featurize/test_family_framework.py fails when the committed file differs).
 schema: $(STAMP)
 	$(PY) -m dancedata.featurize.schema_arrays
 

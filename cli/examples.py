@@ -3,7 +3,7 @@
 Keyed by the command's path below ``dancedata`` ("featurize", "ingest aist"). The paths are the
 demo's (``make pipeline``): data/raw/aist-demo and data/stores/aist-demo. A command whose own
 help already holds a line starting "Example" keeps it; every other command needs an entry here
-(tests/test_cli_rough_edges.py checks every command's --help).
+(tests/cli/test_cli_rough_edges.py checks every command's --help).
 """
 
 from __future__ import annotations

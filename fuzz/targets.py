@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from dancedata.errors import InputError
 from tests.data.bad.make_corpus import good_motion
 from tests.fault_strategies import Hang, bvh_documents, mutated_bvh, within
-from tests.test_faults_bvh_hypothesis import check_bvh_bytes, check_valid_doc
+from tests.io.test_faults_bvh_hypothesis import check_bvh_bytes, check_valid_doc
 
 _SCRATCH = Path(tempfile.mkdtemp(prefix="dancedata-fuzz-"))
 atexit.register(shutil.rmtree, _SCRATCH, ignore_errors=True)

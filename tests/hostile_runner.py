@@ -1,5 +1,5 @@
 """The runner of the hostile cases of ``tests/data/bad/hostile_*.py`` against the real command
-line (``tests/test_hostile_inputs.py`` and ``tests/test_hostile_inputs_files.py`` each run a
+line (``tests/cli/test_hostile_inputs.py`` and ``tests/cli/test_hostile_inputs_files.py`` each run a
 share of the classes, so pytest-xdist spreads the corpus over its workers).
 
 Each case gets its own folder holding a fresh copy of one small featurized store (copied, never

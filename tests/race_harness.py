@@ -1,8 +1,8 @@
 """Deterministic writer races with real processes: start ``dancedata`` commands, freeze one
 (SIGSTOP) while it holds the store lock, queue others behind it, let it go (SIGCONT).
 
-Shared by tests/test_races.py (featurize, segment, ingest behind a frozen featurize) and
-tests/test_ingest_races.py (ingest behind a held lock or a frozen ingest). Nothing is mocked:
+Shared by tests/store/test_races.py (featurize, segment, ingest behind a frozen featurize) and
+tests/ingest/test_ingest_races.py (ingest behind a held lock or a frozen ingest). Nothing is mocked:
 the lock is the store's real lock file, the commands are real CLI subprocesses, each in its own
 session so that the signals reach only it.
 """

@@ -11,7 +11,7 @@ The tuning that ``estimate_tuning`` returns lies on a grid of 0.01 bins, so trac
 are kept per process.
 
 Equality with ``librosa.cqt`` is tested on real and synthetic music
-(tests/test_constant_q.py): identical arrays.
+(tests/compute/test_constant_q.py): identical arrays.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ cost a fraction of a CPU-second. The compiled code is cached on disk (``cache=Tr
 built once per machine, not once per process. ``quat_sign_continuous_spans`` makes quaternions
 sign-continuous within each sequence of a batch in one pass.
 
-Agreement with scipy (tests/test_rotation_kernels.py): quaternions and matrices to 1e-15,
+Agreement with scipy (tests/compute/test_rotation_kernels.py): quaternions and matrices to 1e-15,
 Euler angles to 1e-12 rad away from gimbal lock; at gimbal lock both give the same rotation.
 """
 

@@ -20,7 +20,7 @@ over its sequences. featurize decodes the first ``(N - 1) × hop + n_fft / 2 + 1
 longer than that (every AIST++ track, any music cut to its dance) the whole file, and the numbers
 are those of the whole track. A longer track (a ten-hour file under a one-minute dance) gives
 features for the span only. Local features (onset envelope, MFCC, mel, STFT) on the frames the
-sequences use equal those of the whole file (tests/test_audio_limits.py); features that
+sequences use equal those of the whole file (tests/featurize/test_audio_limits.py); features that
 normalise, estimate or search over the whole signal (chroma: its tuning estimate; beats: the
 global tempo; onset peaks: max-normalised; NMFD; the repetition-based stems) see the span, which
 the feature cache key and the music table (``decoded_s``) record. A track no sequence uses is

@@ -96,7 +96,7 @@ def sqrtm_error_bound(product: np.ndarray) -> float:
     eigenvalues of a singular product, whose eigenvectors are not unique) count √δ. The bound is
     twice the sum over the eigenvalues (the distance has −2 Tr). Without κᵢ the bound was
     exceeded twofold on full-rank products of ill-conditioned covariances (200 units × 32 dims,
-    cond Σ1 ≈ 1e7; tests/test_frechet_precision.py).
+    cond Σ1 ≈ 1e7; tests/metrics/test_frechet_precision.py).
     """
     a = np.atleast_2d(np.asarray(product, dtype=np.float64))
     if a.size == 0 or not np.all(np.isfinite(a)):

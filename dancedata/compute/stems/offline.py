@@ -172,7 +172,7 @@ def repetition_background(
     # triangle is computed (each block of rows against itself and the later frames, the
     # earlier columns copied from the rows above: half the products). Its entries differ
     # from a full product's by float32 rounding (BLAS does not round a·b and b·a alike);
-    # no neighbour set changed on the reference tracks (tests/test_audio_reference.py).
+    # no neighbour set changed on the reference tracks (tests/featurize/test_audio_reference.py).
     triangle = np.empty((n, n), dtype=np.float32) if n <= _TRIANGLE_FRAMES else None
     unit: np.ndarray | None = None  # (bins, frames), for the full products of long clips
     with single_thread_blas():

@@ -92,7 +92,7 @@ def separation_options(settings: AudioSettings) -> dict[str, Any]:
 # Revision of the offline separation's arithmetic, recorded in the stem families' config (so in
 # the manifest, the fingerprint and the feature-cache key): features cached by an older
 # revision are recomputed. 2: float32 masks and inverse STFTs (outputs within float32
-# rounding of revision 1, see tests/test_audio_reference.py).
+# rounding of revision 1, see tests/featurize/test_audio_reference.py).
 OFFLINE_ALGORITHM = 2
 
 

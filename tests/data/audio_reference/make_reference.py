@@ -1,5 +1,5 @@
 """Store the default audio feature set of the code before the audio speed-up, as the reference
-that ``tests/test_audio_reference.py`` compares today's code against.
+that ``tests/featurize/test_audio_reference.py`` compares today's code against.
 
 Generated once, at commit b417ef3 (the last commit before the audio speed-up), with
 ``python tests/data/audio_reference/make_reference.py``; its output ``reference.npz`` is

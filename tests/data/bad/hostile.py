@@ -3,7 +3,7 @@
 A case plants one hostile thing (a nested ``store.json``, a symlinked version, a sparse ``.npy``,
 an experiment config whose id is a path, ...) into a fresh copy of a small featurized store and
 names the ``dancedata`` commands that must refuse it. The runner (``tests/hostile_runner.py``,
-called by ``tests/test_hostile_inputs.py`` and ``tests/test_hostile_inputs_files.py``) runs
+called by ``tests/cli/test_hostile_inputs.py`` and ``tests/cli/test_hostile_inputs_files.py``) runs
 every command, plain and with ``--json`` where the command has it, and fails on a traceback,
 an exit code other than 0 or 1, a hang (timeout), a file written outside the store or output
 folder, or a process whose peak RSS is above 1 GB.

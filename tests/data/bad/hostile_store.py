@@ -304,7 +304,7 @@ def references_outside(work: Path, store: Path) -> list[Command]:
     replace(version(store) / "references.json", json.dumps(record).encode())
     # a local store shares files by hard link, never through references.json: readers ignore
     # it (validate reports it as a file not recorded at commit); the object-store reader
-    # refuses it (tests/test_store_untrusted.py)
+    # refuses it (tests/store/test_store_untrusted.py)
     return validate_only(store, "references.json")
 
 
