@@ -18,10 +18,40 @@ import pytest
 # numba's on-disk cache of compiled functions (librosa's gufuncs, our kernels) breaks when two
 # processes compile the same function into it at once (a segfault on every later call, numba
 # issue 10128). Each pytest-xdist worker, and every command its tests start, gets a cache folder
-# of its own, set before anything imports numba; it goes when the worker ends.
-_NUMBA_CACHE = tempfile.mkdtemp(prefix="dancedata-tests-numba-")
-os.environ["NUMBA_CACHE_DIR"] = _NUMBA_CACHE
-atexit.register(shutil.rmtree, _NUMBA_CACHE, True)
+# of its own, set before anything imports numba. The folder is kept between runs (compiling
+# librosa's beat tracker and our kernels costs a worker about a minute of CPU, once per machine
+# instead of once per run) and held under an exclusive lock for the whole session, so a second
+# session running at the same time takes the next folder or, failing that, a temporary one.
+_NUMBA_LOCKS: list = []
+
+
+def _numba_cache_of_this_worker() -> str:
+    """``$XDG_CACHE_HOME/dancedata/test-numba/<xdist worker>[-k]`` (``~/.cache`` when unset),
+    locked for this process; a temporary folder when none can be locked or made."""
+    import fcntl
+
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    base = base / "dancedata" / "test-numba"
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+    for name in (worker, *(f"{worker}-{k}" for k in range(1, 4))):
+        try:
+            (base / name).mkdir(parents=True, exist_ok=True)
+            lock = open(base / f"{name}.lock", "w")  # noqa: SIM115 - held until the process ends
+        except OSError:
+            break
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        _NUMBA_LOCKS.append(lock)
+        return str(base / name)
+    folder = tempfile.mkdtemp(prefix="dancedata-tests-numba-")
+    atexit.register(shutil.rmtree, folder, True)
+    return folder
+
+
+os.environ["NUMBA_CACHE_DIR"] = _numba_cache_of_this_worker()
 
 _DEFAULT_REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 
