@@ -24,13 +24,18 @@ def run_cli(
     """Run ``dancedata ARGS`` and return its exit code, stdout and stderr.
 
     In this interpreter by default (:func:`run_cli_in_process`): the command's own code path,
-    without the ~1 s of interpreter start and imports a subprocess pays per call. In a
-    subprocess of this interpreter (:func:`run_cli_subprocess`) when the test asks for what only
-    a process gives: ``isolated=True``, an ``env`` (start-up variables such as PATH or
-    PYTHONPATH, credentials that cached filesystem objects would not see), or a ``timeout`` (a
-    hang that must end in a failure, not stall the suite)."""
-    if isolated or env is not None or timeout is not None:
+    without the ~1 s of interpreter start and imports a subprocess pays per call. With a
+    ``timeout`` (a hang must end in a failure, not stall the suite), in a process of its own
+    forked from a server that imported the command line once (tests/fork_server.py). In a fresh
+    subprocess of this interpreter (:func:`run_cli_subprocess`) with ``isolated=True`` or an
+    ``env`` (start-up variables such as PATH or PYTHONPATH, credentials that cached filesystem
+    objects would not see)."""
+    if isolated or env is not None:
         proc = run_cli_subprocess(*args, env=env, timeout=600 if timeout is None else timeout)
+    elif timeout is not None:
+        from tests.fork_server import run_forked
+
+        proc = run_forked(list(args), timeout=timeout)
     else:
         proc = run_cli_in_process(*args)
     if check and proc.returncode != 0:

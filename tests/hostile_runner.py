@@ -5,8 +5,9 @@ share of the classes, so pytest-xdist spreads the corpus over its workers).
 Each case gets its own folder holding a fresh copy of one small featurized store (copied, never
 hard-linked: a case may edit files in place), a ``work`` folder for its planted files, an empty
 ``cwd`` the commands run in and a feature cache. Each command runs as the ``dancedata`` command
-in a subprocess (``python -c`` of a wrapper calling ``dancedata.cli.main.run``, in its own
-session, killed with its children on timeout), then again with ``--json`` when the case asks.
+in a process of its own (forked by this worker's server, ``tests/fork_server.py``, which imported
+the command line once; the child ends through ``dancedata.cli.main.run``, in its own session,
+killed with its children on timeout), then again with ``--json`` when the case asks.
 It fails on
 
 * a traceback anywhere in the output, an exit code other than 0 or 1 or other than the case's,
@@ -31,37 +32,18 @@ import json
 import os
 import re
 import shutil
-import signal
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
 from tests.data.bad.hostile import Command, HostileCase, all_cases
+from tests.fork_server import SERVER_OF_THIS_PROCESS
 from tests.helpers import REPO
 
 CASES = all_cases()
 MAX_RSS_BYTES = 1 << 30
 MAX_OUTPUT_BYTES = 20_000
-# The command runs in-process under this wrapper, which writes its own peak RSS (VmHWM of its
-# own address space, not inherited from pytest) when it exits; ``run`` ends through the atexit
-# handlers, so the figure is written on every path but a kill.
-WRAPPER = """\
-import atexit, os, sys
-def _peak():
-    with open('/proc/self/status') as fh:
-        kb = fh.read().split('VmHWM:')[1].split()[0]
-    with open(os.environ['HOSTILE_PEAK_FILE'], 'w') as out:
-        out.write(kb)
-atexit.register(_peak)
-sys.argv = ['dancedata', *sys.argv[1:]]
-try:
-    from dancedata.cli.main import run
-except ImportError:  # a checkout older than run()
-    from dancedata.cli.main import main as run
-run()
-"""
 
 
 def _snapshot(root: Path, skip: set[Path]) -> dict[str, tuple]:
@@ -91,38 +73,16 @@ def _changed(before: dict[str, tuple], after: dict[str, tuple]) -> list[str]:
 def _run(argv: list[str], cwd: Path, env: dict[str, str], io_dir: Path, timeout: float
          ) -> tuple[int | None, str, str, int, float]:  # fmt: skip
     """(exit code or None on timeout, stdout, stderr, peak RSS bytes, CPU seconds) of one
-    command."""
-    import subprocess
-
+    command, run in a child forked by this worker's server (tests/fork_server.py)."""
     out_path, err_path, peak_path = io_dir / "stdout", io_dir / "stderr", io_dir / "peak"
     peak_path.unlink(missing_ok=True)
-    env = {**env, "HOSTILE_PEAK_FILE": str(peak_path)}
-    polled = 0
-    with out_path.open("wb") as out, err_path.open("wb") as err:
-        proc = subprocess.Popen(
-            [sys.executable, "-c", WRAPPER, *argv],
-            cwd=cwd, env=env, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
-            start_new_session=True,
-        )  # fmt: skip
-        deadline = time.monotonic() + timeout
-        code: int | None = None
-        while True:
-            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-            if pid:
-                code = os.waitstatus_to_exitcode(status)
-                break
-            polled = max(polled, _vm_hwm(proc.pid))
-            if time.monotonic() > deadline:
-                os.killpg(proc.pid, signal.SIGKILL)
-                _, status, usage = os.wait4(proc.pid, 0)
-                break
-            time.sleep(0.05)
-        proc.returncode = -1 if code is None else code  # reaped by wait4 above
-        cpu = usage.ru_utime + usage.ru_stime
-    # the wrapper's own figure; polled /proc/PID/status when it was killed before writing it
-    rss = int(peak_path.read_text()) * 1024 if peak_path.is_file() else polled
+    done = SERVER_OF_THIS_PROCESS.run(
+        argv, cwd=cwd, env=env, stdout=out_path, stderr=err_path, timeout=timeout, peak=peak_path
+    )
+    # the child's own figure; polled /proc/PID/status when it was killed before writing it
+    rss = int(peak_path.read_text()) * 1024 if peak_path.is_file() else done.polled_rss
     read = lambda p: p.read_bytes().decode("utf-8", "replace")  # noqa: E731
-    return code, read(out_path), read(err_path), rss, cpu
+    return done.code, read(out_path), read(err_path), rss, done.cpu_s
 
 
 def _vm_hwm(pid: int) -> int:
