@@ -179,12 +179,14 @@ class Repeated:
     def __len__(self) -> int:
         return len(self.dataset) * self.k
 
-    def batch(self, indices, multiple_of: int = 1):
-        return self.dataset.batch([i % len(self.dataset) for i in indices], multiple_of)
-
-    def batch_parcel(self, indices, multiple_of: int = 1):
+    def batch(self, indices, multiple_of: int = 1, **extra):
+        """``extra``: what the sampler passes on (the ``epoch`` of augmenting datasets)."""
         n = len(self.dataset)
-        return self.dataset.batch_parcel([i % n for i in indices], multiple_of)
+        return self.dataset.batch([i % n for i in indices], multiple_of, **extra)
+
+    def batch_parcel(self, indices, multiple_of: int = 1, **extra):
+        n = len(self.dataset)
+        return self.dataset.batch_parcel([i % n for i in indices], multiple_of, **extra)
 
 
 class RepeatedPerTensor(Repeated):
