@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import json
 import sys
-from functools import partial
+from functools import cache, partial
 from typing import Annotated, Any
 
 import typer
@@ -99,8 +99,11 @@ def _register() -> None:
     from dancedata.cli import commands  # noqa: F401  (registers commands on `app`)
 
 
+@cache
 def build_command() -> Any:
-    """The click command tree of ``app`` with plain help (see :func:`_plain_help`)."""
+    """The click command tree of ``app`` with plain help (see :func:`_plain_help`), built once
+    per process (about 0.2 s; click makes a fresh context for every invocation, so a caller
+    running several commands in one interpreter, as the tests do, reuses the tree)."""
     _register()
     command = typer.main.get_command(app)
     _plain_help(command, "")

@@ -33,10 +33,22 @@ SERVER = r"""
 import json, os, signal, sys, time
 
 sys.argv = ["dancedata"]
+import importlib, pkgutil
 import numpy, pyarrow, pyarrow.parquet, zarr  # noqa: E401,F401 - what every command imports
+import dancedata
 from dancedata.cli.main import build_command, run
 
-build_command()  # every command module
+build_command()  # every command module, and the command tree each child reuses
+# Every library module but the torch loaders, and the heavy imports the commands make lazily
+# (pandas through pyarrow, pydantic through typer's parameter adapters, matplotlib's figure
+# and font list, librosa and numba through the library): a child then starts with them
+# imported. Its VmHWM counts them all, so the memory bound gets stricter, not looser.
+for info in pkgutil.walk_packages(dancedata.__path__, "dancedata."):
+    if "torch" not in info.name:
+        importlib.import_module(info.name)
+import pandas, typer._adapters, matplotlib.figure, matplotlib.backends.backend_agg  # noqa
+import matplotlib.font_manager  # noqa: F401 - the font list, read once here
+assert "torch" not in sys.modules, "a preloaded module imports torch"
 requests = os.fdopen(os.dup(0), "r")
 replies = os.fdopen(os.dup(1), "w")
 devnull = os.open(os.devnull, os.O_RDONLY)
