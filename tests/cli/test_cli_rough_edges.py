@@ -1,5 +1,6 @@
-"""Issue 14, item 7 (rough edges), through the real ``dancedata`` command in subprocesses:
-Ctrl-C, --json errors, progress in logs, --help, store-version options and ``info`` labels."""
+"""Issue 14, item 7 (rough edges), through the real ``dancedata`` command (in subprocesses where
+a signal or a terminal is involved): Ctrl-C, --json errors, progress in logs, --help,
+store-version options and ``info`` labels."""
 
 from __future__ import annotations
 
@@ -157,35 +158,29 @@ def test_progress_is_a_bar_in_a_terminal(tmp_path):
 
 def _command_paths() -> dict[str, set[str]]:
     """Every leaf command below ``dancedata`` with its option names."""
-    code = (
-        "import json\n"
-        "from dancedata.cli.main import build_command\n"
-        "def walk(cmd, path):\n"
-        "    subs = getattr(cmd, 'commands', None)\n"
-        "    if subs:\n"
-        "        for name, sub in subs.items():\n"
-        "            yield from walk(sub, (path + ' ' + name).strip())\n"
-        "    else:\n"
-        "        yield path, sorted(o for p in cmd.params for o in [*p.opts, *p.secondary_opts]\n"
-        "                           if o.startswith('-'))\n"
-        "print(json.dumps(dict(walk(build_command(), ''))))\n"
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    return {path: set(opts) for path, opts in json.loads(out.stdout).items()}
+    from dancedata.cli.main import build_command
+
+    def walk(cmd, path):
+        subs = getattr(cmd, "commands", None)
+        if subs:
+            for name, sub in subs.items():
+                yield from walk(sub, (path + " " + name).strip())
+        else:
+            yield path, {o for p in cmd.params for o in [*p.opts, *p.secondary_opts] if o[0] == "-"}
+
+    return dict(walk(build_command(), ""))
 
 
-def test_every_command_help_has_an_example_and_plain_flag_names():
+def test_every_command_help_has_an_example_and_plain_flag_names(monkeypatch):
+    """Each command's --help in this interpreter (click reads COLUMNS when it formats help)."""
     from dancedata.cli.examples import EXAMPLES
 
     commands = _command_paths()
     for expected in ("featurize", "ingest aist", "experiment run", "checkout", "info"):
         assert expected in commands
-    env = {**os.environ, "COLUMNS": "60"}  # narrow: nothing may be cut
+    monkeypatch.setenv("COLUMNS", "60")  # narrow: nothing may be cut
     for path, options in commands.items():
-        proc = subprocess.run(
-            [*CLI, *path.split(), "--help"], capture_output=True, text=True, env=env, check=True
-        )
-        text = proc.stdout
+        text = run_cli(*path.split(), "--help").stdout
         assert "<bool>" not in text and "--no-no-" not in text and "╭" not in text, path
         for option in options:
             assert re.search(rf"(^|[\s,/]){re.escape(option)}($|[\s,=])", text, re.M), (
