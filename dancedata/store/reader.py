@@ -78,9 +78,6 @@ class _VersionReader:
         if name not in TABLE_FILES:
             raise StoreError(f"unknown table {name!r}; known: {sorted(TABLE_FILES)}")
         if name not in self._tables:
-            import pyarrow as pa
-            import pyarrow.parquet as pq
-
             where = self.files.where(TABLE_FILES[name])
             try:
                 data = self.files.read_small(TABLE_FILES[name], TABLE_LIMIT)
@@ -92,11 +89,7 @@ class _VersionReader:
             if problem is not None:
                 raise StoreError(f"{name} table: {problem}", where)
             try:
-                # An Arrow buffer read on this thread: with io.BytesIO (read from pyarrow's IO
-                # threads) a process exiting after the read aborted in about one run in three
-                # ("terminate called without an active exception", SIGABRT), and with pyarrow's
-                # decoding threads still in about 1 in 40. The tables are small.
-                table = pq.read_table(pa.BufferReader(data), use_threads=False)
+                table = parquet_table(data)
             except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
                 raise StoreError(f"unreadable table: {str(exc)[:300]}", where) from None
             problem = table_problem(name, table)
@@ -184,6 +177,20 @@ def recorded_chunks(version_dir: str | Path | StoreBackend) -> dict[str, Any]:
 # run-length encoded zeros can decode to gigabytes).
 MAX_TABLE_ROWS = 50_000_000
 MAX_TABLE_DECODED = 512 * 1024 * 1024
+
+
+def parquet_table(data: bytes) -> pa.Table:
+    """The table of a Parquet file's bytes, decoded on this thread without starting any of
+    pyarrow's native threads. A process that exits while such a thread is alive can abort at
+    exit ("terminate called without an active exception", SIGABRT; apache/arrow#34314):
+    ``read_table`` over io.BytesIO did so in about one run in three, ``read_table`` over an
+    Arrow buffer with ``use_threads=False`` still started a scanner thread and did so in about
+    1 in 40 runs, more with OMP_NUM_THREADS=1. ``ParquetFile.read`` starts none. The tables
+    are small."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    return pq.ParquetFile(pa.BufferReader(data)).read(use_threads=False)
 
 
 def parquet_size_problem(data: bytes) -> str | None:

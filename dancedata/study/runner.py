@@ -421,7 +421,7 @@ def write_results(out: RunOutput, out_dir: Path) -> Path:
 
 def read_results(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """(result rows, record) of a results folder; InputError naming what is missing."""
-    import pyarrow.parquet as pq
+    from dancedata.store.reader import parquet_table
 
     out_dir = Path(out_dir)
     table_path, record_path = out_dir / RESULTS_TABLE, out_dir / RESULTS_RECORD
@@ -430,7 +430,7 @@ def read_results(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, A
             raise InputError("not a results folder (run `dancedata experiment run`)", path)
     try:
         record = json.loads(record_path.read_text(encoding="utf-8"))
-        rows = pq.read_table(table_path, use_threads=False).to_pylist()  # (see store.reader)
+        rows = parquet_table(table_path.read_bytes()).to_pylist()  # no native threads
     except (OSError, ValueError) as exc:
         raise InputError(f"unreadable results: {exc}", out_dir) from None
     return rows, record
