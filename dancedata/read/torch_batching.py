@@ -10,7 +10,7 @@
     for batch in loader:
         batch["motion"]   # (B, T, 225) float32, zero after each item's end
         batch["mask"]     # (B, T) bool, True on real frames
-        batch["lengths"]  # (B,) int64
+        batch["length"]   # (B,) int64 (also as batch["lengths"])
 
 Padding, masks and seeded orders follow :mod:`dancedata.read.batching` (numpy, no torch).
 """
@@ -61,7 +61,8 @@ class PadCollate:
                 out[key] = torch.stack([torch.as_tensor(v) for v in values])
             else:
                 out[key] = torch.tensor(values)
-        out["lengths"] = torch.tensor(lengths, dtype=torch.int64)
+        # "length" as the DataLoader's own batches (torch_data) name it; "lengths" kept as well
+        out["length"] = out["lengths"] = torch.tensor(lengths, dtype=torch.int64)
         out["mask"] = torch.from_numpy(lengths_mask(lengths, total))
         return out
 

@@ -468,6 +468,7 @@ class WindowSource:
             mask=lengths_mask(lengths, total),
             **self._unit_keys(rows),
         )
+        out["length"] = out["lengths"]  # the key DataLoader's default collate batches carry
         return out
 
     def genre_onehot(self, seq_id: str) -> np.ndarray:

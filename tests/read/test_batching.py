@@ -107,6 +107,7 @@ def test_pad_collate_rounds_up_and_old_windows_api_still_works(store) -> None:
     batch = PadCollate(multiple_of=16)([ds[i] for i in range(len(ds) - 3, len(ds))])
     assert batch["motion"].shape[1] % 16 == 0 and "audio" not in batch
     assert batch["mask"].sum(1).tolist() == batch["lengths"].tolist()
+    assert batch["length"].tolist() == batch["lengths"].tolist()  # as torch_data's batches
     window = ds.windows[len(ds) - 1]
     assert window.frame_stop - window.frame_start == ds.lengths[-1] == window.motion.shape[0]
     assert window.audio is None
