@@ -184,10 +184,10 @@ def parquet_table(data: bytes) -> pa.Table:
     """The table of a Parquet file's bytes, decoded on this thread without starting any of
     pyarrow's native threads. A process that exits while such a thread is alive can abort at
     exit ("terminate called without an active exception", SIGABRT; apache/arrow#34314):
-    ``read_table`` over io.BytesIO did so in about one run in three, ``read_table`` over an
-    Arrow buffer with ``use_threads=False`` still started a scanner thread and did so in about
-    1 in 40 runs, more with OMP_NUM_THREADS=1. ``ParquetFile.read`` starts none. The tables
-    are small.
+    ``read_table`` over io.BytesIO did so in about one run in three; ``read_table`` over an
+    Arrow buffer with ``use_threads=False`` still started a scanner thread, and did so in about
+    1 run in 40 (2 in 40 with every numeric thread pool pinned to one thread).
+    ``ParquetFile.read`` starts none (0 in 60). The tables are small.
 
     pyarrow imports pandas (when installed) on its first conversion of a column; ``read_table``
     did so here, at a command's first table read, before any lock is taken. Done here for that

@@ -421,7 +421,8 @@ def write_results(out: RunOutput, out_dir: Path) -> Path:
 
 def read_results(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """(result rows, record) of a results folder; InputError naming what is missing."""
-    from dancedata.store.reader import parquet_table
+    from dancedata.store.reader import parquet_size_problem, parquet_table
+    from dancedata.store.untrusted import TABLE_LIMIT, read_regular
 
     out_dir = Path(out_dir)
     table_path, record_path = out_dir / RESULTS_TABLE, out_dir / RESULTS_RECORD
@@ -430,7 +431,11 @@ def read_results(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, A
             raise InputError("not a results folder (run `dancedata experiment run`)", path)
     try:
         record = json.loads(record_path.read_text(encoding="utf-8"))
-        rows = parquet_table(table_path.read_bytes()).to_pylist()  # no native threads
+        data = read_regular(table_path, TABLE_LIMIT)  # a regular file, its size bounded
+        problem = parquet_size_problem(data)  # nor is its footer's declared size trusted
+        if problem is not None:
+            raise InputError(f"unreadable results: {problem}", table_path)
+        rows = parquet_table(data).to_pylist()  # no native threads
     except (OSError, ValueError) as exc:
         raise InputError(f"unreadable results: {exc}", out_dir) from None
     return rows, record
