@@ -57,9 +57,9 @@ os.environ["NUMBA_CACHE_DIR"] = _numba_cache_of_this_worker()
 def _pin_threads_of_this_worker() -> None:
     """Under pytest-xdist, each of the N workers (and every command or pool it starts, which
     inherit the variables) runs its BLAS, OpenMP, numba and torch pools on cores / N threads,
-    at least one. Two workers on two cores each running two-thread pools left four busy
-    threads on two cores, and torch's OpenMP workers spin while they wait: the OpenUnmix and
-    two-worker featurize tests took 3 to 8 times as long in the whole suite as alone."""
+    at least one, so two workers on two cores do not each run two-thread pools (four busy
+    threads on two cores). Its effect on the suite's time was within this machine's noise;
+    the two-worker featurize test still takes 16 s alone and up to ~120 s beside OpenUnmix."""
     workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0"))
     if workers < 2:
         return

@@ -5,16 +5,19 @@ in a process of its own: a hang must end in a kill, a peak resident set must be 
 own, a crash must not take pytest with it. A fresh ``python -m dancedata.cli`` spends about a
 second starting and importing before the command does anything, which was most of those
 tests' time. :class:`ForkServer` starts one server process per pytest worker that imports the
-command line (and numpy, pyarrow, zarr) once, then forks one child per command. The child is a
+command line and the whole library (all but the torch loaders; see ``SERVER``) once, then
+forks one child per command. The child is a
 process of its own, as before: its own session (killed with its children on timeout), the
 case's working folder and environment, stdin from /dev/null, stdout and stderr into files, and
 it ends through ``dancedata.cli.main.run`` like the ``dancedata`` program. Its peak RSS
-(``VmHWM``, written at exit) counts the pages it shares with the server, as a fresh process
-counts the same imports, so the memory bound is not loosened.
+(``VmHWM``, written at exit) counts the pages it shares with the server, which imported more
+than most commands need, so the memory bound is stricter, not looser.
 
 Only variables read at run time may differ between commands: the server's imports read none of
-the ones the tests change (the feature cache, credentials, ``MPLCONFIGDIR``); a test that needs
-a different start-up environment (PATH, PYTHONPATH) uses a plain subprocess.
+the ones the tests change (the feature cache, credentials) except ``MPLCONFIGDIR``, which
+matplotlib reads once at import: a child uses the server's font cache, whatever its own
+``MPLCONFIGDIR`` says (so it writes none). A test that needs a different start-up environment
+(PATH, PYTHONPATH, matplotlib's configuration) uses a plain subprocess.
 """
 
 from __future__ import annotations
