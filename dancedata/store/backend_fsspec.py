@@ -27,6 +27,7 @@ Credentials and endpoints come from the protocol's usual environment (see
 
 from __future__ import annotations
 
+import errno
 import json
 import sys
 import time
@@ -97,7 +98,31 @@ class FsspecBackend(StoreBackend):
 
     # -- reading -------------------------------------------------------------------------------
     def read_bytes(self, key: str) -> bytes:
+        # start=0: one GET. Without a range s3fs first asks the object's size (a HEAD) to
+        # decide on a concurrent download, which only pays for objects of tens of MB.
+        try:
+            return self.fs.cat_file(self.key(key), start=0)
+        except OSError as exc:
+            if exc.errno != errno.EINVAL:  # an empty object: a range of it is unsatisfiable
+                raise
         return self.fs.cat_file(self.key(key))
+
+    def read_small(self, key: str, limit: int) -> bytes:
+        """One ranged GET of at most ``limit + 1`` bytes; more than ``limit`` came back, the
+        object is refused, its size then asked for the message. Untrusted: what the server
+        sends is counted, whatever size it declares."""
+        from dancedata.store.untrusted import too_large
+
+        path = self.key(key)
+        try:
+            data = self.fs.cat_file(path, start=0, end=limit + 1)
+        except OSError as exc:
+            if exc.errno != errno.EINVAL:
+                raise
+            return super().read_small(key, limit)  # an empty object (no range of it exists)
+        if len(data) > limit:
+            raise too_large(self.where(key), max(len(data), self.size(key)), limit)
+        return data
 
     def is_file(self, key: str) -> bool:
         # not fs.isfile: fsspec's swallows every error, so a dead endpoint or missing
@@ -286,8 +311,14 @@ class FsspecBackend(StoreBackend):
     def zarr_store(self, key: str, *, read_only: bool = False) -> Any:
         from zarr.storage import FsspecStore
 
+        options = storage_options()
+        if self.url.split("://", 1)[0] in ("s3", "s3a"):
+            # A chunk is one GET: with more than one transfer per file allowed, s3fs asks
+            # each object's size first (a HEAD) to decide on a concurrent download, which
+            # pays only for objects of tens of MB; our chunks are a few MB at most.
+            options.setdefault("max_concurrency", 1)
         return FsspecStore.from_url(
-            self.where(key), storage_options=storage_options() or None, read_only=read_only
+            self.where(key), storage_options=options or None, read_only=read_only
         )
 
 

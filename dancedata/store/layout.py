@@ -252,8 +252,10 @@ class StoreLayout:
             raise StoreError("is a file, not a store directory", self.root)
 
     def read_pointer(self) -> dict[str, Any]:
-        """Contents of store.json; a clear error when it is missing or not ours."""
-        self.check_not_a_file()
+        """Contents of store.json; a clear error when it is missing or not ours.
+
+        Read first, asked about only when the read fails: on an object store the good case is
+        one request (it was five, and every command reads the pointer several times)."""
         special = self.backend.special(STORE_FILE)
         if special is not None:
             raise StoreError(
@@ -261,13 +263,14 @@ class StoreLayout:
                 "is read through it)",
                 self.store_file,
             )
-        if not self.exists():
-            raise StoreError(f"not a dancedata store ({self._missing_pointer()})", self.root)
         try:
             text = self.backend.read_small(STORE_FILE, POINTER_LIMIT)
-        except FileNotFoundError:
-            raise StoreError("not a dancedata store (no store.json)", self.root) from None
         except OSError as exc:
+            self.check_not_a_file()
+            if isinstance(exc, FileNotFoundError) or not self.exists():
+                raise StoreError(
+                    f"not a dancedata store ({self._missing_pointer()})", self.root
+                ) from None
             raise StoreError(
                 f"unreadable store.json: {exc.strerror or exc}", self.store_file
             ) from None
@@ -285,8 +288,8 @@ class StoreLayout:
 
     def _pointer_or_none(self) -> dict[str, Any] | None:
         try:
-            return self.read_pointer() if self.exists() else None
-        except StoreError:
+            return self.read_pointer()
+        except StoreError:  # missing or not ours
             return None
 
     def ensure(self) -> None:
@@ -334,9 +337,12 @@ class StoreLayout:
 
     def _pointer_limit(self) -> int:
         """The newest version number store.json commits (0 when none)."""
-        if not self.exists():
-            return 0
-        pointer = self.read_pointer()
+        try:
+            pointer = self.read_pointer()
+        except StoreError:
+            if not self.exists():
+                return 0
+            raise
         latest = pointer.get("latest")
         if not isinstance(latest, str) or not _VERSION_RE.match(latest):
             return 0
@@ -347,9 +353,9 @@ class StoreLayout:
     def version_problem(self, name: str) -> str | None:
         """Why ``versions/<name>`` is not a usable committed version, or None when it is."""
         key = self.version_key(name)
-        if not self.backend.is_dir(key):
-            return "not a directory"
-        if not self.backend.is_file(f"{key}/{MANIFEST_FILE}"):
+        if not self.backend.is_file(f"{key}/{MANIFEST_FILE}"):  # (a folder, then: ask no more)
+            if not self.backend.is_dir(key):
+                return "not a directory"
             return "version folder has no manifest.json (a damaged or half-restored version)"
         try:
             self.read_manifest(name)
@@ -386,11 +392,13 @@ class StoreLayout:
         taken = self.version_dirs()
         return f"v{version_number(taken[-1]) + 1 if taken else 1}"
 
-    def latest(self) -> str | None:
+    def latest(self, committed: list[str] | None = None) -> str | None:
         """The newest committed version. store.json names it; if a crash fell between the
-        commit rename and the pointer update, the newest committed directory wins."""
+        commit rename and the pointer update, the newest committed directory wins.
+        ``committed``: :meth:`committed_versions` when the caller has just listed them."""
         pointer = self.read_pointer()
-        committed = self.committed_versions()
+        if committed is None:
+            committed = self.committed_versions()
         if not committed:
             return None
         named = pointer.get("latest")
@@ -412,7 +420,7 @@ class StoreLayout:
                 raise StoreError(f"version {version} is damaged: {problem}", self.root)
         committed = self.committed_versions()
         if version is None:
-            latest = self.latest()
+            latest = self.latest(committed)
             if latest is None:
                 damaged = self.damaged_versions()
                 if damaged:  # name why, so the one line (or JSON error) says what is wrong

@@ -231,3 +231,61 @@ def test_an_object_written_at_a_referenced_path_is_reported(stores):
     assert rel in load_record(version)["files"]
     problems = check_record(version, deep=False)
     assert len(problems) == 1 and rel in problems[0] and f"says {refs[rel]} holds it" in problems[0]
+
+
+@pytest.fixture
+def s3_requests(monkeypatch):
+    """Counts the S3 requests this process sends, by operation (the real requests still go to
+    the server: s3fs's one entry point to the client is wrapped, nothing is answered here)."""
+    import collections
+
+    import s3fs.core
+
+    counts: collections.Counter = collections.Counter()
+    real = s3fs.core.S3FileSystem._call_s3
+
+    async def counted(self, method, *args, **kwargs):  # noqa: ANN001, ANN202
+        counts[method] += 1
+        return await real(self, method, *args, **kwargs)
+
+    monkeypatch.setattr(s3fs.core.S3FileSystem, "_call_s3", counted)
+    return counts
+
+
+def test_reads_cost_one_request_each(stores, s3_requests):
+    """store.json, a manifest and every chunk are one GET each: no size asked first (s3fs's
+    HEAD), no existence check before a read that would fail anyway. Measured before: the
+    pointer 5 requests, open_store 29, every array of the demo store 220 (HEAD + GET per
+    chunk), ``info`` 235, ``validate`` 1253; after: 1, 10-13, 102, 120 and 707."""
+    layout = StoreLayout(stores["url"])
+    layout.read_pointer()
+    assert dict(s3_requests) == {"get_object": 1}
+    s3_requests.clear()
+    remote = dancedata.open_store(stores["url"])
+    assert sum(s3_requests.values()) <= 14, dict(s3_requests)
+    s3_requests.clear()
+    for name in remote.array_names():
+        remote.zarr(name)[...]
+    assert s3_requests["head_object"] <= 2, dict(s3_requests)
+    s3_requests.clear()
+    run_cli("info", stores["url"], "--json")
+    assert sum(s3_requests.values()) <= 130, dict(s3_requests)
+
+
+def test_small_reads_are_bounded_and_exact(stores):
+    """One ranged GET of limit + 1 bytes: an empty object (where S3 has no range to give), an
+    object of exactly the limit, and one a byte over it (refused, its real size named)."""
+    from dancedata.store.backend_fsspec import FsspecBackend
+    from dancedata.store.untrusted import UnsafeFile
+
+    fs = s3fs.S3FileSystem()
+    backend = FsspecBackend(f"s3://{BUCKET}/small-reads")
+    fs.pipe_file(f"{BUCKET}/small-reads/empty", b"")
+    fs.pipe_file(f"{BUCKET}/small-reads/ten", b"0123456789")
+    assert backend.read_small("empty", 4) == b"" and backend.read_bytes("empty") == b""
+    assert backend.read_small("ten", 10) == b"0123456789"
+    assert backend.read_bytes("ten") == b"0123456789"
+    with pytest.raises(UnsafeFile, match="10 bytes, over the reader's limit of 9 bytes"):
+        backend.read_small("ten", 9)
+    with pytest.raises(FileNotFoundError):
+        backend.read_small("missing", 10)
