@@ -429,8 +429,9 @@ def render_sequence(
     """Render ``seq_id`` to the MP4 ``out`` with its music (module docstring); progress on
     stderr (``dancedata.progress``)."""
     require_av()
+    from dancedata.exec.prefetch import prefetched
     from dancedata.progress import progress_bar
-    from dancedata.viz.render_encode import AUDIO_SR, VideoWriter, video_codec
+    from dancedata.viz.render_encode import AUDIO_SR, VideoWriter, bgr_to_i420, video_codec
 
     began = time.perf_counter()
     options = options or RenderOptions()
@@ -442,8 +443,11 @@ def render_sequence(
     bar = progress_bar(f"render {seq_id}", renderer.n_frames, unit="frame")
     try:
         with VideoWriter(out, options.width, options.height, renderer.fps, audio, codec) as writer:
-            for image in renderer.frames():
-                writer.write(image)
+            # drawing and colour conversion (OpenCV, GIL released) in a thread, one step
+            # ahead of the encoder: each I420 frame is a new array, the drawn image is reused
+            drawn = (bgr_to_i420(image) for image in renderer.frames())
+            for planes in prefetched(drawn, depth=4):
+                writer.write_i420(planes)
                 bar.update(1)
     finally:
         bar.close()

@@ -44,6 +44,16 @@ def video_codec() -> str:
     return "libx264"
 
 
+def bgr_to_i420(image: np.ndarray) -> np.ndarray:
+    """(H * 3 / 2, W) uint8 I420 planes of a BGR (H, W, 3) uint8 image, a new array.
+
+    OpenCV's BGR → I420 (BT.601, limited range, as swscale's default) is a third of the cost of
+    handing bgr24 frames to PyAV's converter."""
+    import cv2
+
+    return cv2.cvtColor(image, cv2.COLOR_BGR2YUV_I420)
+
+
 class VideoWriter:
     """Write BGR uint8 frames (H, W, 3) and, optionally, mono float32 audio to an MP4.
 
@@ -109,12 +119,12 @@ class VideoWriter:
 
     def write(self, image: np.ndarray) -> None:
         """Encode one BGR frame (H, W, 3) uint8 at the next frame time."""
-        import av
-        import cv2
+        self.write_i420(bgr_to_i420(image))
 
-        # OpenCV's BGR → I420 (BT.601, limited range, as swscale's default) is a third of the
-        # cost of handing bgr24 frames to PyAV's converter.
-        planes = cv2.cvtColor(image, cv2.COLOR_BGR2YUV_I420)
+    def write_i420(self, planes: np.ndarray) -> None:
+        """Encode one frame already in I420 (:func:`bgr_to_i420`) at the next frame time."""
+        import av
+
         frame = av.VideoFrame.from_ndarray(planes, format="yuv420p")
         frame.pts = self._frames
         for packet in self.video.encode(frame):
