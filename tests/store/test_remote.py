@@ -269,7 +269,8 @@ def test_reads_cost_one_request_each(stores, s3_requests):
     assert s3_requests["head_object"] <= 2, dict(s3_requests)
     s3_requests.clear()
     run_cli("info", stores["url"], "--json")
-    assert sum(s3_requests.values()) <= 130, dict(s3_requests)
+    # 120 with v1-v3, 142 once the test above has committed v4 (the old code: 235 with v1-v3)
+    assert sum(s3_requests.values()) <= 150, dict(s3_requests)
 
 
 def test_small_reads_are_bounded_and_exact(stores):
