@@ -12,6 +12,13 @@ import pytest
 from dancedata.exec.prefetch import prefetched
 
 
+def counted(n: int, made: list[int]):  # noqa: ANN201 - a generator of ints
+    """0 .. n-1, each appended to ``made`` when the producer makes it."""
+    for k in range(n):
+        made.append(k)
+        yield k
+
+
 def test_same_items_in_the_same_order_made_in_another_thread() -> None:
     made_in: set[int] = set()
 
@@ -26,13 +33,7 @@ def test_same_items_in_the_same_order_made_in_another_thread() -> None:
 
 def test_at_most_depth_items_ahead() -> None:
     made: list[int] = []
-
-    def produce():
-        for k in range(50):
-            made.append(k)
-            yield k
-
-    stream = prefetched(produce(), depth=2)
+    stream = prefetched(counted(50, made), depth=2)
     assert next(stream) == 0
     time.sleep(0.3)  # the producer fills the queue and waits
     # item 0 handed over, two queued, one more made and waiting to be put
@@ -55,13 +56,7 @@ def test_a_producer_error_is_raised_where_its_item_would_be() -> None:
 
 def test_leaving_early_stops_the_producer() -> None:
     made: list[int] = []
-
-    def produce():
-        for k in range(10_000):
-            made.append(k)
-            yield k
-
-    for item in prefetched(produce(), depth=2):
+    for item in prefetched(counted(10_000, made), depth=2):
         if item == 5:
             break
     time.sleep(0.3)
