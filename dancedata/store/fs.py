@@ -45,7 +45,60 @@ def remote_fs(url: str) -> tuple[Any, str]:
         fs, path = url_to_fs(url, **storage_options())
     except (ImportError, ValueError) as exc:
         raise StoreError(f"cannot open this store URL: {exc}", url) from None
+    if url.split("://", 1)[0].lower() in ("s3", "s3a"):
+        check_endpoint_answers()
     return fs, path.rstrip("/")
+
+
+_ANSWERED: set[str] = set()
+_PROXY_VARIABLES = (
+    "HTTPS_PROXY",
+    "HTTP_PROXY",
+    "ALL_PROXY",
+    "https_proxy",
+    "http_proxy",
+    "all_proxy",
+)
+
+
+def check_endpoint_answers(*, timeout_s: float = 5.0) -> None:
+    """Fail at once, in one line, when the configured S3 endpoint refuses connections or its
+    host name does not exist.
+
+    Without this, botocore retries a refused connection four times with exponential backoff
+    (about 8 s) before the error reaches us, in every command and every worker. One TCP connect
+    per endpoint and process (a few milliseconds) settles it first. Only a definite answer
+    fails: a timeout or any other socket error is left to botocore's own retries, and nothing
+    is probed when a proxy carries the traffic or the endpoint is AWS's default."""
+    endpoint = explicit_endpoint()
+    if (
+        endpoint is None
+        or endpoint in _ANSWERED
+        or any(os.environ.get(v) for v in _PROXY_VARIABLES)
+    ):
+        return
+    import socket
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(endpoint)
+    try:
+        port = parts.port or (443 if parts.scheme == "https" else 80)
+    except ValueError:
+        return  # a malformed port: botocore's own error says more
+    if not parts.hostname:
+        return
+    try:
+        with socket.create_connection((parts.hostname, port), timeout=timeout_s):
+            pass
+    except ConnectionRefusedError:
+        raise StoreError(f"cannot reach S3 endpoint {endpoint}: connection refused") from None
+    except socket.gaierror as exc:
+        if exc.errno == socket.EAI_NONAME:
+            raise StoreError(f"cannot reach S3 endpoint {endpoint}: host name not found") from None
+        return
+    except OSError:
+        return
+    _ANSWERED.add(endpoint)
 
 
 # -- operating-system failures while writing a store --------------------------------------------
@@ -208,6 +261,12 @@ def _origin(url: Any) -> str | None:
 def configured_endpoint() -> str:
     """The S3 endpoint this process talks to: ``endpoint_url`` of DANCEDATA_STORAGE_OPTIONS
     (or its ``client_kwargs``), else AWS_ENDPOINT_URL_S3 / AWS_ENDPOINT_URL, else AWS's own."""
+    return explicit_endpoint() or "https://s3.amazonaws.com (the AWS default)"
+
+
+def explicit_endpoint() -> str | None:
+    """The S3 endpoint set for this process (see :func:`configured_endpoint`), or None when
+    none is set and AWS's own applies."""
     try:
         options = storage_options()
     except StoreError:
@@ -221,4 +280,4 @@ def configured_endpoint() -> str:
     ):
         if isinstance(value, str) and value.strip():
             return value.strip().rstrip("/")
-    return "https://s3.amazonaws.com (the AWS default)"
+    return None
