@@ -6,6 +6,7 @@ worker); `dancedata.store.fs.check_endpoint_answers` settles it with one TCP con
 
 from __future__ import annotations
 
+import json
 import socket
 
 import pytest
@@ -62,7 +63,7 @@ def test_the_endpoint_of_the_storage_options_is_the_one_probed(clean_env):
     endpoint = f"http://127.0.0.1:{closed_port()}"
     clean_env.setenv("AWS_ENDPOINT_URL", "http://127.0.0.1:1")
     clean_env.setenv(
-        "DANCEDATA_STORAGE_OPTIONS", '{"client_kwargs": {"endpoint_url": "%s"}}' % endpoint
+        "DANCEDATA_STORAGE_OPTIONS", json.dumps({"client_kwargs": {"endpoint_url": endpoint}})
     )
     with pytest.raises(StoreError, match=f"cannot reach S3 endpoint {endpoint}: connection"):
         fs.remote_fs("s3://bucket/store")
@@ -88,7 +89,8 @@ def test_a_listening_endpoint_passes_and_is_probed_once(clean_env):
         fs.check_endpoint_answers()  # remembered: no second connection
         with pytest.raises(TimeoutError):
             server.accept()
-    assert fs._ANSWERED == {endpoint}
+    answered = fs._ANSWERED
+    assert answered == {endpoint}
 
 
 def test_nothing_is_probed_through_a_proxy_or_for_the_aws_default(clean_env):
@@ -97,4 +99,5 @@ def test_nothing_is_probed_through_a_proxy_or_for_the_aws_default(clean_env):
     clean_env.setenv("AWS_ENDPOINT_URL", f"http://127.0.0.1:{closed_port()}")
     clean_env.setenv("HTTPS_PROXY", "http://127.0.0.1:3128")
     fs.check_endpoint_answers()  # the proxy, not us, connects to the endpoint
-    assert fs._ANSWERED == set()
+    answered = fs._ANSWERED
+    assert answered == set()
