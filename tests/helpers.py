@@ -127,3 +127,39 @@ def importorskip_unless_ci(name: str):  # noqa: ANN201 - the imported module
         if os.environ.get("CI", "").lower() == "true":
             pytest.fail(f"CI=true but {name} is not installed ({exc}); run `make test`")
         pytest.skip(f"{name} not installed: {exc}", allow_module_level=True)
+
+
+# Processes a test keeps running side by side, by numba cache slot (see ``own_numba_cache``).
+_NUMBA_SLOTS: dict[int, subprocess.Popen] = {}
+
+
+def free_numba_slot() -> int:
+    """The lowest numba cache slot no running process started by ``popen_with_own_numba_cache``
+    holds."""
+    slot = 0
+    while slot in _NUMBA_SLOTS and _NUMBA_SLOTS[slot].poll() is None:
+        slot += 1
+    return slot
+
+
+def own_numba_cache(env: dict[str, str], name: str) -> dict[str, str]:
+    """``env`` with a numba cache folder of its own, ``<this worker's folder>/<name>``.
+
+    Processes that run at the same time must not share one (two processes compiling the same
+    gufunc into one folder leave a pair of files that segfaults every later process reading it,
+    numba issue 10128; tests/conftest.py gives each xdist worker its folder, which every process
+    the worker starts inherits). Named, not temporary, so the compile is paid once per machine."""
+    base = os.environ.get("NUMBA_CACHE_DIR")
+    if not base:
+        return env
+    return {**env, "NUMBA_CACHE_DIR": str(Path(base) / name)}
+
+
+def popen_with_own_numba_cache(argv: list[str], **kwargs) -> subprocess.Popen:
+    """``subprocess.Popen(argv, **kwargs)`` in a numba cache slot no running process of this
+    helper holds (a process started while another runs gets the next slot)."""
+    slot = free_numba_slot()
+    env = kwargs.pop("env", None) or dict(os.environ)
+    proc = subprocess.Popen(argv, env=own_numba_cache(env, f"concurrent-{slot}"), **kwargs)
+    _NUMBA_SLOTS[slot] = proc
+    return proc

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from dancedata.store.layout import StoreLayout
 from dancedata.store.lock import LOCK_FILE
-from tests.helpers import REPO
+from tests.helpers import REPO, popen_with_own_numba_cache
 
 # Longest wait for any one step (a lock taken, a message printed, a process ending), seconds.
 TIMEOUT_S = 120.0
@@ -31,7 +31,7 @@ def start(*args: str, stderr: Path) -> subprocess.Popen:
     """``dancedata ARGS`` in its own session (so SIGSTOP/SIGCONT reach only it); stderr goes to
     the file ``stderr``, stdout is piped."""
     with open(stderr, "w") as err:
-        return subprocess.Popen(
+        return popen_with_own_numba_cache(
             [sys.executable, "-m", "dancedata.cli", *args],
             cwd=REPO,
             stdout=subprocess.PIPE,

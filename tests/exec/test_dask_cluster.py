@@ -37,7 +37,7 @@ from dancedata.exec.storage_env import STORAGE_ENV_PREFIXES
 from dancedata.exec.threads import thread_env
 from dancedata.store.fs import STORAGE_OPTIONS_ENV
 from dancedata.store.validate import validate_store
-from tests.helpers import REPO, importorskip_unless_ci, run_cli
+from tests.helpers import REPO, importorskip_unless_ci, own_numba_cache, run_cli
 from tests.s3_server import moto_s3
 
 importorskip_unless_ci("distributed")
@@ -113,7 +113,8 @@ class Cluster:
                 [str(DASK), *args],
                 stdout=log,
                 stderr=subprocess.STDOUT,
-                env=self.env,
+                # processes of a cluster run side by side: a numba cache folder each
+                env=own_numba_cache(self.env, f"dask-{self.root.name}-{name}"),
                 cwd=self.root,
                 start_new_session=True,
             )
