@@ -35,7 +35,7 @@ from typing import Any
 
 from dancedata.errors import DancedataError
 from dancedata.exec.malloc import tune_malloc
-from dancedata.exec.numba_cache import numba_cache_base, use_slot_cache
+from dancedata.exec.numba_cache import numba_cache_base, use_dask_worker_cache, use_slot_cache
 from dancedata.exec.storage_env import apply_storage_env, storage_env
 from dancedata.exec.threads import pin_threads, single_threaded, thread_env
 
@@ -284,6 +284,9 @@ class DaskExecutor(Executor):
                 env=thread_env(1),
             )
             self.client = Client(self._cluster)
+            # The workers start together and compile librosa's gufuncs together: a numba cache
+            # folder each (a shared one can be left segfaulting, numba issue 10128).
+            self.client.run(use_dask_worker_cache, str(numba_cache_base()))
         else:
             self.client = self._connect(Client, address, connect_timeout)
         try:

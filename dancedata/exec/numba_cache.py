@@ -12,7 +12,9 @@ compile is paid once per slot, not once per run.
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
+from typing import Any
 
 ENV_VAR = "NUMBA_CACHE_DIR"
 
@@ -40,3 +42,21 @@ def use_slot_cache(base: Path, slot: int) -> Path:
     folder = slot_cache_dir(base, slot)
     os.environ[ENV_VAR] = str(folder)
     return folder
+
+
+def dask_worker_cache_dir(base: Path, worker_name: object) -> Path:
+    """The cache folder of the local Dask worker named ``worker_name`` under ``base``:
+    ``dask-<name>``, the name kept to letters, digits, ``-`` and ``_`` (it becomes a path)."""
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in str(worker_name))[:64]
+    return base / f"dask-{safe or 'worker'}"
+
+
+def use_dask_worker_cache(base: str, dask_worker: Any = None) -> str:
+    """Run on each worker of a local Dask cluster (``Client.run`` passes ``dask_worker``): point
+    numba at a folder no other worker writes. Returns the folder, or ``""`` when numba is already
+    imported in that worker (it read the variable then, so setting it would not take effect)."""
+    if "numba" in sys.modules or dask_worker is None:
+        return ""
+    folder = dask_worker_cache_dir(Path(base), dask_worker.name)
+    os.environ[ENV_VAR] = str(folder)
+    return str(folder)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from dancedata.exec.executors import ProcessExecutor
-from dancedata.exec.numba_cache import numba_cache_base, slot_cache_dir
+from dancedata.exec.numba_cache import dask_worker_cache_dir, numba_cache_base, slot_cache_dir
 
 
 def _where_numba_caches(_: int) -> tuple[int, str, str]:
@@ -42,3 +42,29 @@ def test_default_base_follows_xdg(tmp_path, monkeypatch) -> None:
     assert slot_cache_dir(Path("/x"), 3) == Path("/x/worker-3")
     with pytest.raises(ValueError):
         slot_cache_dir(Path("/x"), -1)
+
+
+@pytest.mark.slow
+def test_each_worker_of_a_local_dask_cluster_has_its_own_numba_cache(tmp_path, monkeypatch):
+    """``--dask local:N`` starts N workers at once: each must compile into a folder of its own."""
+    pytest.importorskip("distributed")
+    from dancedata.exec.executors import DaskExecutor
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "numba"))
+    with DaskExecutor("local:2") as executor:
+        taken = executor.client.run(_numba_cache_of_this_process)
+    expected = {str(dask_worker_cache_dir(tmp_path / "numba", k)) for k in (0, 1)}
+    assert sorted(taken.values()) == sorted(expected)
+    assert len(taken) == 2
+
+
+def _numba_cache_of_this_process() -> str:
+    import numba
+
+    return numba.config.CACHE_DIR
+
+
+def test_a_dask_worker_name_is_kept_to_one_safe_folder_name(tmp_path) -> None:
+    assert dask_worker_cache_dir(tmp_path, 3) == tmp_path / "dask-3"
+    assert dask_worker_cache_dir(tmp_path, "../../x y") == tmp_path / "dask-______x_y"
+    assert dask_worker_cache_dir(tmp_path, "") == tmp_path / "dask-worker"
