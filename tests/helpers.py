@@ -133,7 +133,7 @@ def importorskip_unless_ci(name: str):  # noqa: ANN201 - the imported module
 _NUMBA_SLOTS: dict[int, subprocess.Popen] = {}
 
 
-def free_numba_slot() -> int:
+def _free_numba_slot() -> int:
     """The lowest numba cache slot no running process started by ``popen_with_own_numba_cache``
     holds."""
     slot = 0
@@ -158,7 +158,7 @@ def own_numba_cache(env: dict[str, str], name: str) -> dict[str, str]:
 def popen_with_own_numba_cache(argv: list[str], **kwargs) -> subprocess.Popen:
     """``subprocess.Popen(argv, **kwargs)`` in a numba cache slot no running process of this
     helper holds (a process started while another runs gets the next slot)."""
-    slot = free_numba_slot()
+    slot = _free_numba_slot()
     env = kwargs.pop("env", None) or dict(os.environ)
     proc = subprocess.Popen(argv, env=own_numba_cache(env, f"concurrent-{slot}"), **kwargs)
     _NUMBA_SLOTS[slot] = proc

@@ -9,6 +9,7 @@ subprocesses, which inherit it) at it, creates the buckets, and restores everyth
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 import socket
@@ -25,6 +26,7 @@ CREDENTIALS = {
 }
 
 
+@functools.cache  # the class is built once, on first use (moto imports late)
 def _s3_server_class() -> type:
     """moto's threaded server with every request but its own API sent to the S3 backend.
 
@@ -68,16 +70,6 @@ def _s3_server_class() -> type:
     return S3MotoServer
 
 
-def _S3MotoServer(**kwargs: Any) -> Any:  # noqa: N802 (a class, built on first use)
-    global _SERVER_CLASS
-    if _SERVER_CLASS is None:
-        _SERVER_CLASS = _s3_server_class()
-    return _SERVER_CLASS(**kwargs)
-
-
-_SERVER_CLASS: type | None = None
-
-
 def start_moto_server() -> tuple[Any, str, int]:
     """Start a moto S3 server on a free loopback port with no buckets: (server, host, port).
 
@@ -86,7 +78,7 @@ def start_moto_server() -> tuple[Any, str, int]:
     made still exists here (and ``s3fs.mkdir`` of it raises FileExistsError)."""
     pytest.importorskip("moto.server")
     logging.getLogger("werkzeug").setLevel(logging.ERROR)
-    server = _S3MotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server = _s3_server_class()(ip_address="127.0.0.1", port=0, verbose=False)
     server.start()
     host, port = server.get_host_and_port()
     reset = urllib.request.Request(f"http://{host}:{port}/moto-api/reset", method="POST")
