@@ -148,10 +148,15 @@ def own_numba_cache(env: dict[str, str], name: str) -> dict[str, str]:
     Processes that run at the same time must not share one (two processes compiling the same
     gufunc into one folder leave a pair of files that segfaults every later process reading it,
     numba issue 10128; tests/conftest.py gives each xdist worker its folder, which every process
-    the worker starts inherits). Named, not temporary, so the compile is paid once per machine."""
+    the worker starts inherits). Named, not temporary, so the compile is paid once per machine;
+    a new folder starts as a copy of what this worker compiled so far (seed_cache_folder), so on
+    a machine with no cache it is not paid again for each folder."""
+    from dancedata.exec.numba_cache import seed_cache_folder, seed_sources
+
     base = os.environ.get("NUMBA_CACHE_DIR")
     if not base:
         return env
+    seed_cache_folder(Path(base) / name, seed_sources(Path(base)))
     return {**env, "NUMBA_CACHE_DIR": str(Path(base) / name)}
 
 

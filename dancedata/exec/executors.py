@@ -35,7 +35,14 @@ from typing import Any
 
 from dancedata.errors import DancedataError
 from dancedata.exec.malloc import tune_malloc
-from dancedata.exec.numba_cache import numba_cache_base, use_dask_worker_cache, use_slot_cache
+from dancedata.exec.numba_cache import (
+    numba_cache_base,
+    seed_cache_folder,
+    seed_sources,
+    slot_cache_dir,
+    use_dask_worker_cache,
+    use_slot_cache,
+)
 from dancedata.exec.storage_env import apply_storage_env, storage_env
 from dancedata.exec.threads import pin_threads, single_threaded, thread_env
 
@@ -164,14 +171,17 @@ class ProcessExecutor(Executor):
             context = multiprocessing.get_context("spawn")
             # Each worker takes a slot number, hence a numba cache folder of its own.
             slots = context.Queue()
+            base = numba_cache_base()
             for slot in range(self.workers):
                 slots.put(slot)
+                # A new slot starts from the functions compiled before (a copy, not a compile).
+                seed_cache_folder(slot_cache_dir(base, slot), seed_sources(base))
             try:
                 self._pool = ProcessPoolExecutor(
                     max_workers=self.workers,
                     mp_context=context,
                     initializer=_init_worker,
-                    initargs=(self.warmups, slots, str(numba_cache_base())),
+                    initargs=(self.warmups, slots, str(base)),
                 )
             finally:
                 for key, value in saved.items():

@@ -7,16 +7,29 @@ with a segmentation fault, then on every later run, until the files are deleted 
 10128). Worker processes of one pool start together and reach the same functions together, so
 each worker slot gets a folder of its own; a slot's folder is reused by the next pool, so the
 compile is paid once per slot, not once per run.
+
+A slot folder that does not exist yet is first seeded with a copy of the compiled functions
+already in the base folder or a sibling slot (:func:`seed_cache_folder`), so a new slot costs a
+copy of a few MB instead of ~20 CPU-s of compiling. Copying is safe while another process writes
+the source: numba writes each file whole under a temporary name and renames it, the index before
+its data file, so a copy holds at worst an index entry whose data file is missing, which numba
+treats as a miss and compiles again, as after a killed writer.
 """
 
 from __future__ import annotations
 
 import os
+import re
+import shutil
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 ENV_VAR = "NUMBA_CACHE_DIR"
+
+# numba names the folder for the functions of one source folder ``<its name>_<sha1 of its path>``.
+_NUMBA_ENTRY = re.compile(r".+_[0-9a-f]{40}")
 
 
 def numba_cache_base() -> Path:
@@ -58,5 +71,67 @@ def use_dask_worker_cache(base: str, dask_worker: Any = None) -> str:
     if "numba" in sys.modules or dask_worker is None:
         return ""
     folder = dask_worker_cache_dir(Path(base), dask_worker.name)
+    seed_cache_folder(folder, seed_sources(Path(base)))
     os.environ[ENV_VAR] = str(folder)
     return str(folder)
+
+
+def numba_entries(folder: Path) -> list[Path]:
+    """numba's own subfolders of a cache folder (``<source folder>_<sha1>``), not the slot
+    folders beside them; none when ``folder`` cannot be listed. Links are never followed."""
+    try:
+        children = list(folder.iterdir())
+    except OSError:
+        return []
+    return sorted(
+        p for p in children if _NUMBA_ENTRY.fullmatch(p.name) and p.is_dir() and not p.is_symlink()
+    )
+
+
+def _count_files(folder: Path) -> int:
+    return sum(len(list(entry.glob("*.nb[ic]"))) for entry in numba_entries(folder))
+
+
+def _ignore_partial(_: str, names: list[str]) -> list[str]:
+    """numba's temporaries (``<file>.tmp.<uid>``) are files still being written: not copied."""
+    return [name for name in names if ".tmp." in name]
+
+
+def seed_cache_folder(target: Path, sources: Iterable[Path]) -> int:
+    """Copy the compiled functions of the fullest of ``sources`` into ``target`` when ``target``
+    holds none; returns the number of files copied (0 when nothing was to gain or a copy
+    failed: numba then compiles, as without seeding). Each numba subfolder is copied under a
+    temporary name and renamed into place, so a process reading ``target`` never sees half."""
+    if numba_entries(target):
+        return 0
+    candidates = [s for s in sources if s != target]
+    counts = [(_count_files(s), str(s), s) for s in candidates]
+    if not counts or max(counts)[0] == 0:
+        return 0
+    source = max(counts)[2]
+    copied = 0
+    for entry in numba_entries(source):
+        temporary = target / f".seed-{os.getpid()}-{entry.name}"
+        try:
+            target.mkdir(parents=True, exist_ok=True)
+            shutil.copytree(entry, temporary, symlinks=True, ignore=_ignore_partial)
+            os.rename(temporary, target / entry.name)
+        except OSError:  # a full disk, a folder another seeder renamed in first: compile instead
+            shutil.rmtree(temporary, ignore_errors=True)
+            continue
+        copied += sum(1 for _ in (target / entry.name).glob("*.nb[ic]"))
+    return copied
+
+
+def seed_sources(base: Path) -> list[Path]:
+    """Where a new slot of ``base`` can take compiled functions from: ``base`` itself (a process
+    run with ``NUMBA_CACHE_DIR=base``) and its slot folders (``worker-*``, ``dask-*``)."""
+    try:
+        slots = sorted(
+            p
+            for p in base.iterdir()
+            if p.name.startswith(("worker-", "dask-")) and p.is_dir() and not p.is_symlink()
+        )
+    except OSError:
+        slots = []
+    return [base, *slots]

@@ -68,3 +68,69 @@ def test_a_dask_worker_name_is_kept_to_one_safe_folder_name(tmp_path) -> None:
     assert dask_worker_cache_dir(tmp_path, 3) == tmp_path / "dask-3"
     assert dask_worker_cache_dir(tmp_path, "../../x y") == tmp_path / "dask-______x_y"
     assert dask_worker_cache_dir(tmp_path, "") == tmp_path / "dask-worker"
+
+
+def _compile_and_call(folder: str, src: Path) -> tuple[int, int]:
+    """In a fresh process with ``NUMBA_CACHE_DIR=folder``: compile (or load) the cached function
+    of the module in ``src``, and return its result and numba's count of
+    functions it compiled in this process."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[1]); import kernel; "
+        "print(kernel.triple(14), len(kernel.triple.stats.cache_misses))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(src)],
+        env={**os.environ, "NUMBA_CACHE_DIR": folder},
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    return int(out[0]), int(out[1])
+
+
+def test_a_new_slot_is_seeded_with_what_was_compiled_before(tmp_path) -> None:
+    """A new slot folder starts as a copy of the fullest sibling: its process loads the compiled
+    function instead of compiling it (numba's own miss counter says which happened)."""
+    from dancedata.exec.numba_cache import numba_entries, seed_cache_folder, seed_sources
+
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "kernel.py").write_text(
+        "import numba\n\n@numba.njit(cache=True)\ndef triple(x):\n    return 3 * x\n"
+    )
+    base = tmp_path / "numba"
+    assert _compile_and_call(str(base), src) == (42, 1)  # compiled: one miss
+    assert _compile_and_call(str(base), src) == (42, 0)  # loaded from the cache
+    slot = slot_cache_dir(base, 0)
+    assert seed_cache_folder(slot, seed_sources(base)) == 2  # the index and the data file
+    assert [e.name for e in numba_entries(slot)] == [e.name for e in numba_entries(base)]
+    assert not list(slot.glob(".seed-*"))
+    assert _compile_and_call(str(slot), src) == (42, 0)  # loaded, not compiled
+    assert seed_cache_folder(slot, seed_sources(base)) == 0  # already holds functions
+    # Nothing to take from: an empty folder stays empty (its process compiles).
+    assert seed_cache_folder(tmp_path / "other" / "worker-0", [tmp_path / "nothing"]) == 0
+    assert _compile_and_call(str(tmp_path / "fresh"), src) == (42, 1)
+
+
+def test_a_seed_skips_links_and_files_still_being_written(tmp_path) -> None:
+    from dancedata.exec.numba_cache import numba_entries, seed_cache_folder
+
+    source = tmp_path / "base"
+    entry = source / f"src_{'a' * 40}"
+    entry.mkdir(parents=True)
+    (entry / "f-1.py311.nbi").write_bytes(b"index")
+    (entry / "f-1.py311.1.nbc").write_bytes(b"data")
+    (entry / "f-1.py311.1.nbc.tmp.0123456789abcdef").write_bytes(b"half")
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (source / f"link_{'b' * 40}").symlink_to(outside, target_is_directory=True)
+    (source / "not-numba").mkdir()
+    assert [e.name for e in numba_entries(source)] == [entry.name]
+    target = tmp_path / "slot"
+    assert seed_cache_folder(target, [source]) == 2
+    copied = sorted(p.name for p in (target / entry.name).iterdir())
+    assert copied == ["f-1.py311.1.nbc", "f-1.py311.nbi"]
+    assert sorted(p.name for p in target.iterdir()) == [entry.name]
