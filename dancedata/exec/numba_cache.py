@@ -22,7 +22,7 @@ import os
 import re
 import shutil
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -76,20 +76,29 @@ def use_dask_worker_cache(base: str, dask_worker: Any = None) -> str:
     return str(folder)
 
 
-def numba_entries(folder: Path) -> list[Path]:
-    """numba's own subfolders of a cache folder (``<source folder>_<sha1>``), not the slot
-    folders beside them; none when ``folder`` cannot be listed. Links are never followed."""
+def _subfolders(folder: Path, keep: Callable[[str], object]) -> list[Path]:
+    """The folders directly in ``folder`` whose name ``keep`` accepts, sorted; none when
+    ``folder`` cannot be listed. Links are never followed."""
     try:
         children = list(folder.iterdir())
     except OSError:
         return []
-    return sorted(
-        p for p in children if _NUMBA_ENTRY.fullmatch(p.name) and p.is_dir() and not p.is_symlink()
-    )
+    return sorted(p for p in children if keep(p.name) and p.is_dir() and not p.is_symlink())
+
+
+def numba_entries(folder: Path) -> list[Path]:
+    """numba's own subfolders of a cache folder (``<source folder>_<sha1>``), not the slot
+    folders beside them."""
+    return _subfolders(folder, _NUMBA_ENTRY.fullmatch)
+
+
+def _compiled_files(entry: Path) -> int:
+    """Index and data files (``*.nbi``, ``*.nbc``) in one numba subfolder."""
+    return sum(1 for _ in entry.glob("*.nb[ic]"))
 
 
 def _count_files(folder: Path) -> int:
-    return sum(len(list(entry.glob("*.nb[ic]"))) for entry in numba_entries(folder))
+    return sum(_compiled_files(entry) for entry in numba_entries(folder))
 
 
 def _ignore_partial(_: str, names: list[str]) -> list[str]:
@@ -104,11 +113,9 @@ def seed_cache_folder(target: Path, sources: Iterable[Path]) -> int:
     temporary name and renamed into place, so a process reading ``target`` never sees half."""
     if numba_entries(target):
         return 0
-    candidates = [s for s in sources if s != target]
-    counts = [(_count_files(s), str(s), s) for s in candidates]
-    if not counts or max(counts)[0] == 0:
+    source = max((s for s in sources if s != target), key=_count_files, default=None)
+    if source is None or _count_files(source) == 0:
         return 0
-    source = max(counts)[2]
     copied = 0
     for entry in numba_entries(source):
         temporary = target / f".seed-{os.getpid()}-{entry.name}"
@@ -119,19 +126,11 @@ def seed_cache_folder(target: Path, sources: Iterable[Path]) -> int:
         except OSError:  # a full disk, a folder another seeder renamed in first: compile instead
             shutil.rmtree(temporary, ignore_errors=True)
             continue
-        copied += sum(1 for _ in (target / entry.name).glob("*.nb[ic]"))
+        copied += _compiled_files(target / entry.name)
     return copied
 
 
 def seed_sources(base: Path) -> list[Path]:
     """Where a new slot of ``base`` can take compiled functions from: ``base`` itself (a process
     run with ``NUMBA_CACHE_DIR=base``) and its slot folders (``worker-*``, ``dask-*``)."""
-    try:
-        slots = sorted(
-            p
-            for p in base.iterdir()
-            if p.name.startswith(("worker-", "dask-")) and p.is_dir() and not p.is_symlink()
-        )
-    except OSError:
-        slots = []
-    return [base, *slots]
+    return [base, *_subfolders(base, lambda name: name.startswith(("worker-", "dask-")))]
