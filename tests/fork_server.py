@@ -13,6 +13,12 @@ it ends through ``dancedata.cli.main.run`` like the ``dancedata`` program. Its p
 (``VmHWM``, written at exit) counts the pages it shares with the server, which imported more
 than most commands need, so the memory bound is stricter, not looser.
 
+:meth:`ForkServer.run` waits for the child (killing it at a timeout); :meth:`ForkServer.spawn`
+returns at once with a :class:`ForkedProcess` that answers ``poll()`` and ``wait()`` like
+``subprocess.Popen``, for tests that signal the command themselves (the kill loop of
+tests/cli/test_kill_loop.py). Either way the server replies only once the child leads a
+process group of its own, so a ``killpg`` right after never misses it.
+
 Only variables read at run time may differ between commands: the server's imports read none of
 the ones the tests change (the feature cache, credentials) except ``MPLCONFIGDIR``, which
 matplotlib reads once at import: a child uses the server's font cache, whatever its own
@@ -65,8 +71,10 @@ def vm_hwm(pid):
         return 0
 
 
-def child(req):
+def child(req, ready):
     os.setsid()
+    os.write(ready, b"1")  # a group of its own now: the parent may reply, a kill finds it
+    os.close(ready)
     os.chdir(req["cwd"])
     os.environ.clear()
     os.environ.update(req["env"])
@@ -93,16 +101,55 @@ def child(req):
     run()
 
 
-for line in requests:
-    req = json.loads(line)
+def start(req):
+    # fork the child of req; return once it leads a process group of its own
     sys.stdout.flush()
     sys.stderr.flush()
+    ready_r, ready_w = os.pipe()
     pid = os.fork()
     if pid == 0:
         try:
-            child(req)
+            os.close(ready_r)
+            child(req, ready_w)
         finally:
             os._exit(70)
+    os.close(ready_w)
+    os.read(ready_r, 1)  # b"" if the child died first: nothing left to wait for
+    os.close(ready_r)
+    return pid
+
+
+def reply(**fields):
+    replies.write(json.dumps(fields) + "\n")
+    replies.flush()
+
+
+def finished(status, usage):
+    return {"code": os.waitstatus_to_exitcode(status), "cpu": usage.ru_utime + usage.ru_stime}
+
+
+spawned = set()  # children started by "spawn", reaped by "poll" or "wait"
+for line in requests:
+    req = json.loads(line)
+    mode = req.get("mode", "run")
+    if mode == "spawn":
+        pid = start(req)
+        spawned.add(pid)
+        reply(pid=pid)
+        continue
+    if mode in ("poll", "wait"):
+        pid = req["pid"]
+        if pid not in spawned:
+            reply(error=f"no spawned child {pid}")
+            continue
+        got, status, usage = os.wait4(pid, os.WNOHANG if mode == "poll" else 0)
+        if not got:
+            reply(code=None, running=True)
+            continue
+        spawned.discard(pid)
+        reply(**finished(status, usage), running=False)
+        continue
+    pid = start(req)
     deadline = time.monotonic() + req["timeout"]
     code, polled = None, 0
     while True:
@@ -119,9 +166,13 @@ for line in requests:
             _, status, usage = os.wait4(pid, 0)
             break
         time.sleep(0.02)
-    cpu = usage.ru_utime + usage.ru_stime
-    replies.write(json.dumps({"code": code, "cpu": cpu, "polled": polled}) + "\n")
-    replies.flush()
+    reply(code=code, cpu=usage.ru_utime + usage.ru_stime, polled=polled)
+for pid in spawned:  # the tests ended without waiting: leave no orphan running
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    os.waitpid(pid, 0)
 """
 
 
@@ -177,6 +228,26 @@ class ForkServer:
             "timeout": float(timeout),
             "peak": str(peak) if peak else None,
         }
+        record = self._ask(request)
+        return Finished(record["code"], record["cpu"], record["polled"])
+
+    def spawn(
+        self, argv: list[str], *, cwd: Path, env: dict[str, str], stdout: Path, stderr: Path
+    ) -> ForkedProcess:
+        """Start ``dancedata ARGV`` in a forked child and return at once, the child already
+        leading a process group of its own (``os.killpg(child.pid, ...)`` reaches it)."""
+        request = {
+            "mode": "spawn",
+            "argv": list(argv),
+            "cwd": str(cwd),
+            "env": dict(env),
+            "stdout": str(stdout),
+            "stderr": str(stderr),
+        }
+        return ForkedProcess(self, self._ask(request)["pid"])
+
+    def _ask(self, request: dict) -> dict:
+        """Send one request, return the server's reply."""
         server = self._server()
         assert server.stdin is not None and server.stdout is not None
         server.stdin.write(json.dumps(request) + "\n")
@@ -185,7 +256,9 @@ class ForkServer:
         if not reply:
             raise RuntimeError(f"the fork server ended (exit {server.wait()})")
         record = json.loads(reply)
-        return Finished(record["code"], record["cpu"], record["polled"])
+        if "error" in record:
+            raise RuntimeError(record["error"])
+        return record
 
     def close(self) -> None:
         if self._proc is not None and self._proc.poll() is None:
@@ -196,6 +269,32 @@ class ForkServer:
             except subprocess.TimeoutExpired:
                 self._proc.kill()
         self._proc = None
+
+
+class ForkedProcess:
+    """A child started by :meth:`ForkServer.spawn`, answering as ``subprocess.Popen`` does:
+    ``poll()`` and ``wait()`` give the exit code (negative: the signal that ended it), which
+    the server reaps, as the child is the server's."""
+
+    def __init__(self, server: ForkServer, pid: int) -> None:
+        self._server = server
+        self.pid = pid
+        self.returncode: int | None = None
+
+    def _ask(self, mode: str) -> int | None:
+        if self.returncode is None:
+            record = self._server._ask({"mode": mode, "pid": self.pid})
+            if not record["running"]:
+                self.returncode = record["code"]
+        return self.returncode
+
+    def poll(self) -> int | None:
+        return self._ask("poll")
+
+    def wait(self) -> int:
+        code = self._ask("wait")
+        assert code is not None
+        return code
 
 
 SERVER_OF_THIS_PROCESS = ForkServer()

@@ -3,7 +3,7 @@
 One module-scoped loop does the killing and records what it saw; the tests below judge it:
 
 * at least 20 kills land before the writer commits: "clock" kills at a moment drawn between
-  0.2 s and the command's uninterrupted duration (measured on a reference store), and "window"
+  20 ms and the command's uninterrupted duration (measured on a reference store), and "window"
   kills at a moment drawn within the time the reference run held the store lock, counted from
   when this run takes it, so that they fall inside the version build (kills that land after
   the commit are checked too but not counted);
@@ -29,7 +29,6 @@ import random
 import re
 import shutil
 import signal
-import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
@@ -49,6 +48,7 @@ from dancedata.store.lock import LOCK_FILE
 from dancedata.store.reader import _VersionReader
 from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
+from tests.fork_server import SERVER_OF_THIS_PROCESS, ForkedProcess
 from tests.helpers import REPO
 
 _register()  # the CLI commands, for `versions` run in-process after each kill
@@ -62,18 +62,22 @@ KILLS = {
     "featurize": {"clock": 3, "window": 4},
     "segment": {"clock": 4, "window": 4},
 }
-MIN_DELAY_S = 0.2
+# Each command runs in a child forked from a server that imported the library
+# (tests/fork_server.py): it does its work from the first milliseconds, so kill moments start
+# at 20 ms, not after an interpreter start.
+MIN_DELAY_S = 0.02
+MIN_RANGE_S = 0.05  # the narrowest clock range: a run faster than this still gets kills drawn
 _VERSION_DIR = re.compile(r"^v\d+$")
 _BAR = re.compile(r"(?P<desc>[a-z][a-z0-9 ]+):\s+\d+%\|[^|]*\|\s*(?P<n>\d+)/(?P<total>\d+)")
 
 
 def _command(phase: str, raw: Path, store: Path) -> list[str]:
-    args = {
+    """The ``dancedata`` arguments of ``phase``."""
+    return {
         "ingest": ["ingest", "aist", str(raw), "--store", str(store)],
         "featurize": ["featurize", str(store)],
         "segment": ["segment", str(store)],
     }[phase]
-    return [sys.executable, "-m", "dancedata.cli", *args]
 
 
 def _version_files(vdir: Path) -> dict[str, str]:
@@ -203,10 +207,12 @@ def _launch(
     loop: KillLoop,
     phase: str,
     learn: bool = True,
-) -> tuple[subprocess.Popen, str | None, float | None]:
-    """Run ``cmd``; kill its process group according to ``plan``:
+) -> tuple[ForkedProcess, str | None, float | None]:
+    """Run ``dancedata CMD`` in a process of its own (forked from this worker's server, which
+    imported the library once, so the kill ranges are the command's work, not the interpreter
+    start); kill its process group according to ``plan``:
 
-    * ``clock``: at a moment drawn from [0.2 s, uninterrupted duration] after the start;
+    * ``clock``: at a moment drawn from [20 ms, uninterrupted duration] after the start;
     * ``window``: at a moment drawn from [0, lock-held duration] after it takes the store lock,
       so the kill lands inside the version build;
     * ``final``: never.
@@ -218,28 +224,27 @@ def _launch(
     stale = _lock_token(store)
     started = time.monotonic()
     locked_at: float | None = None
-    with open(log, "w") as err:
-        proc = subprocess.Popen(
-            cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=err, start_new_session=True
-        )
-        kill_at: float | None = None
-        what = None
-        if plan == "clock":
-            delay = rng.uniform(MIN_DELAY_S, loop.durations[phase])
-            kill_at, what = started + delay, f"{delay:.2f} s after start"
-        while proc.poll() is None:
-            now = time.monotonic()
-            if locked_at is None and _lock_token(store) not in (None, stale):
-                locked_at = now - started
-                if plan == "window":
-                    delay = rng.uniform(0.0, loop.lock_windows[phase])
-                    kill_at = now + delay
-                    what = f"{delay:.2f} s after taking the lock at {locked_at:.2f} s"
-            if kill_at is not None and now >= kill_at:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
-                return proc, what, locked_at
-            time.sleep(0.005)
+    proc = SERVER_OF_THIS_PROCESS.spawn(
+        cmd, cwd=REPO, env=dict(os.environ), stdout=Path(os.devnull), stderr=log
+    )
+    kill_at: float | None = None
+    what = None
+    if plan == "clock":
+        delay = rng.uniform(MIN_DELAY_S, loop.durations[phase])
+        kill_at, what = started + delay, f"{delay:.2f} s after start"
+    while proc.poll() is None:
+        now = time.monotonic()
+        if locked_at is None and _lock_token(store) not in (None, stale):
+            locked_at = now - started
+            if plan == "window":
+                delay = rng.uniform(0.0, loop.lock_windows[phase])
+                kill_at = now + delay
+                what = f"{delay:.2f} s after taking the lock at {locked_at:.2f} s"
+        if kill_at is not None and now >= kill_at:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+            return proc, what, locked_at
+        time.sleep(0.005)
     if learn:
         _learn_durations(loop, phase, time.monotonic() - started, locked_at)
     return proc, None, locked_at
@@ -248,7 +253,8 @@ def _launch(
 def _learn_durations(loop: KillLoop, phase: str, seconds: float, locked_at: float | None) -> None:
     """Shrink the kill ranges to the fastest uninterrupted run seen: the first run of a command
     is often slower (cold caches, JIT), and delays past the end of a run kill nothing."""
-    loop.durations[phase] = max(min(loop.durations.get(phase, seconds), seconds), MIN_DELAY_S + 0.5)
+    fastest = min(loop.durations.get(phase, seconds), seconds)
+    loop.durations[phase] = max(fastest, MIN_DELAY_S + MIN_RANGE_S)
     if locked_at is not None:
         window = max(seconds - locked_at, 0.05)
         loop.lock_windows[phase] = min(loop.lock_windows.get(phase, window), window)
