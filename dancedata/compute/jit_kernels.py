@@ -53,17 +53,26 @@ def selection_network(n: int, positions: tuple[int, ...]) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def _apply_network(buf: np.ndarray, pairs: np.ndarray, width: int) -> None:
+def _apply_network(buf: np.ndarray, pairs: np.ndarray, width: int, scratch: np.ndarray) -> None:
     """The comparators ``pairs`` on the rows of ``buf``, column by column of ``buf[:, :width]``
-    (vectorised across the columns: min and max, no branch)."""
+    (vectorised across the columns: min and max, no branch). ``scratch`` holds ≥ ``width``
+    values of ``buf``'s dtype.
+
+    The selects are those of Python's ``min`` and ``max`` (y if y < x else x; y if y > x else
+    x), so NaN and signed zeros land where the builtins put them. The minima go to ``scratch``
+    first and are copied back after: written straight into a row of ``buf`` that the same loop
+    also reads through another row, LLVM cannot prove the rows apart and leaves the loop scalar
+    on AVX2 machines (3.8x slower measured on a Zen 3 core)."""
     for c in range(pairs.shape[0]):
         low = buf[pairs[c, 0]]
         high = buf[pairs[c, 1]]
         for j in range(width):
             x = low[j]
             y = high[j]
-            low[j] = min(x, y)
-            high[j] = max(x, y)
+            scratch[j] = y if y < x else x
+            high[j] = y if y > x else x
+        for j in range(width):
+            low[j] = scratch[j]
 
 
 _CHUNK = 256  # columns per pass: k rows of 256 float32 stay in the L1 cache
@@ -84,13 +93,14 @@ def window_median(
     """
     rows, cols = out.shape
     buf = np.empty((k, _CHUNK), dtype=padded.dtype)
+    scratch = np.empty(_CHUNK, dtype=padded.dtype)
     half = k // 2
     for c0 in range(0, cols, _CHUNK):
         width = min(_CHUNK, cols - c0)
         for i in range(0, rows - 1, 2):
             for r in range(k - 1):
                 buf[r, :width] = padded[i + 1 + r, c0 : c0 + width]
-            _apply_network(buf, shared, width)
+            _apply_network(buf, shared, width, scratch)
             low = buf[half - 1]
             high = buf[half]
             first = padded[i, c0 : c0 + width]
@@ -102,7 +112,7 @@ def window_median(
             i = rows - 1
             for r in range(k):
                 buf[r, :width] = padded[i + r, c0 : c0 + width]
-            _apply_network(buf, pairs, width)
+            _apply_network(buf, pairs, width, scratch)
             out[i, c0 : c0 + width] = buf[half, :width]
 
 
@@ -120,13 +130,14 @@ def neighbour_median(
     bins = frames.shape[1]
     mid = k // 2
     buf = np.empty((k, _CHUNK), dtype=frames.dtype)
+    scratch = np.empty(_CHUNK, dtype=frames.dtype)
     for j in range(rows):
         target = out[start + j]
         for c0 in range(0, bins, _CHUNK):
             width = min(_CHUNK, bins - c0)
             for r in range(k):
                 buf[r, :width] = frames[nearest[j, r], c0 : c0 + width]
-            _apply_network(buf, pairs, width)
+            _apply_network(buf, pairs, width, scratch)
             target[c0 : c0 + width] = buf[mid, :width]
 
 
