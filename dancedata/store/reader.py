@@ -99,31 +99,30 @@ class _VersionReader:
             self._tables[name] = table
         return self._tables[name]
 
-    def has_array(self, name: str) -> bool:
+    def _array_node(self, name: str) -> zarr.Array | None:
+        """The array at ``name`` in data.zarr, None when there is none (or a group is there)."""
         root = self.root
         if root is None:
-            return False
+            return None
         try:
             node = root[name]
         except KeyError:
-            return False
+            return None
         import zarr
 
-        return isinstance(node, zarr.Array)
+        return node if isinstance(node, zarr.Array) else None
+
+    def has_array(self, name: str) -> bool:
+        return self._array_node(name) is not None
 
     def array(self, name: str) -> zarr.Array:
-        if not self.has_array(name):
+        node = self._array_node(name)  # one lookup: each costs a metadata read through zarr
+        if node is None:
             import difflib
 
             close = difflib.get_close_matches(name, self.array_names(), n=3, cutoff=0.8)
             hint = f"did you mean {', '.join(map(repr, close))}?" if close else "run featurize?"
             raise StoreError(f"version {self.version} has no array {name!r} ({hint})", self.path)
-        import zarr
-
-        root, node = self.root, None
-        if root is not None:
-            node = root[name]
-        assert isinstance(node, zarr.Array)  # has_array: data.zarr holds an array at name
         return node
 
     def array_names(self) -> list[str]:
