@@ -142,15 +142,16 @@ class LocalBackend(StoreBackend):
         return sorted(entry.name for entry in folder.iterdir())
 
     def find(self, key: str, *, skip_top: Iterable[str] = ()) -> list[str]:
-        top = self.path(key)
+        # plain strings, not a Path per file: validate lists every chunk of every version
+        top = os.fspath(self.path(key))
         skip = set(skip_top)
         found: list[str] = []
         for dirpath, dirnames, filenames in os.walk(top):
-            rel_dir = Path(dirpath).relative_to(top)
-            if rel_dir == Path("."):
+            prefix = _posix_prefix(dirpath, top)
+            if not prefix:
                 dirnames[:] = [d for d in dirnames if d not in skip]
                 filenames = [f for f in filenames if f not in skip]
-            found.extend((rel_dir / name).as_posix() for name in filenames)
+            found.extend(prefix + name for name in filenames)
         return sorted(found)
 
     def size(self, key: str) -> int:
@@ -171,13 +172,13 @@ class LocalBackend(StoreBackend):
         return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
 
     def links(self, key: str) -> list[str]:
-        top = self.path(key)
+        top = os.fspath(self.path(key))
         found = []
         for dirpath, dirnames, filenames in os.walk(top):
-            rel_dir = Path(dirpath).relative_to(top)
+            prefix = _posix_prefix(dirpath, top)
             for name in [*dirnames, *filenames]:
                 if os.path.islink(os.path.join(dirpath, name)):
-                    found.append((rel_dir / name).as_posix())
+                    found.append(prefix + name)
         return sorted(found)
 
     def is_regular(self, key: str) -> bool:
@@ -271,3 +272,10 @@ def unique_suffix() -> str:
 
 
 __all__ = ["LocalBackend", "fsync_dir", "join", "write_file_atomic"]
+
+
+def _posix_prefix(dirpath: str, top: str) -> str:
+    """``dirpath`` (a folder os.walk gave under ``top``) relative to ``top`` as a POSIX prefix
+    ending in ``/``; ``""`` for ``top`` itself."""
+    rel = os.path.relpath(dirpath, top)
+    return "" if rel == "." else rel.replace(os.sep, "/") + "/"
