@@ -271,11 +271,11 @@ def unique_suffix() -> str:
     return f"{os.getpid()}-{secrets.token_hex(4)}"
 
 
-__all__ = ["LocalBackend", "fsync_dir", "join", "write_file_atomic"]
-
-
 def _posix_prefix(dirpath: str, top: str) -> str:
     """``dirpath`` (a folder os.walk gave under ``top``) relative to ``top`` as a POSIX prefix
     ending in ``/``; ``""`` for ``top`` itself."""
     rel = os.path.relpath(dirpath, top)
     return "" if rel == "." else rel.replace(os.sep, "/") + "/"
+
+
+__all__ = ["LocalBackend", "fsync_dir", "join", "write_file_atomic"]
