@@ -160,9 +160,17 @@ def child(path: str, seconds: float, repeats: int) -> dict[str, object]:
     # and bills CPU time that featurize does not pay (the mel products: ~0.15 CPU s a track)
     pin_threads(1)
     from dancedata.compute.audio_features import AudioFeatureConfig
-    from dancedata.featurize.audio_track import compute_track_features
-    from dancedata.featurize.families.audio import default_families
-    from dancedata.featurize.family_settings import AudioSettings
+
+    # (a test of the folder, not try/except ImportError: the editable install's finder would
+    # serve this checkout's dancedata.featurize to an older tree on PYTHONPATH)
+    if (Path(dancedata.__file__).parent / "featurize").is_dir():
+        from dancedata.featurize.audio_track import compute_track_features
+        from dancedata.featurize.families.audio import default_families
+        from dancedata.featurize.family_settings import AudioSettings
+    else:  # code from before the layers redesign (b417ef3): the same functions, elsewhere
+        from dancedata.pipeline.audio_families import default_families  # type: ignore
+        from dancedata.pipeline.audio_track import compute_track_features  # type: ignore
+        from dancedata.pipeline.family_settings import AudioSettings  # type: ignore
 
     settings, cfg = AudioSettings(), AudioFeatureConfig()
     families = tuple(default_families(settings))
