@@ -147,7 +147,8 @@ class StoreBackend(ABC):
     @abstractmethod
     def content_key(self, key: str) -> Hashable | None:
         """Changes whenever the bytes at ``key`` may have changed (inode, size and mtime; an
-        ETag): a cache key for hashes and parsed files. None when absent or unknown."""
+        ETag): a cache key for hashes and parsed files. None when absent, not a file (a
+        folder) or unknown."""
 
     def shadowed(self) -> dict[str, str]:
         """{key: holding version} of files stored here although this version's references

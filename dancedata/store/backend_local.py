@@ -169,6 +169,8 @@ class LocalBackend(StoreBackend):
             st = self.path(key).stat()
         except OSError:
             return None
+        if not stat.S_ISREG(st.st_mode):  # a folder, FIFO or device has no content to key
+            return None
         return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
 
     def links(self, key: str) -> list[str]:

@@ -34,6 +34,8 @@ VERSIONS_DIR = "versions"
 MANIFEST_FILE = "manifest.json"
 ZARR_DIR = "data.zarr"
 _VERSION_RE = re.compile(r"^v(\d+)$")
+# read_manifest's default: ask the backend for the manifest's content key itself
+_ASK: Any = object()
 
 TABLE_FILES = {
     "sequences": "sequences.parquet",
@@ -353,12 +355,16 @@ class StoreLayout:
     def version_problem(self, name: str) -> str | None:
         """Why ``versions/<name>`` is not a usable committed version, or None when it is."""
         key = self.version_key(name)
-        if not self.backend.is_file(f"{key}/{MANIFEST_FILE}"):  # (a folder, then: ask no more)
+        manifest = f"{key}/{MANIFEST_FILE}"
+        # One look at the manifest (on object stores one HEAD, whose ETag keys the parsed-manifest
+        # cache): a content key means a file; without one, ask whether it is a file at all.
+        content = self.backend.content_key(manifest)
+        if content is None and not self.backend.is_file(manifest):  # (a folder: ask no more)
             if not self.backend.is_dir(key):
                 return "not a directory"
             return "version folder has no manifest.json (a damaged or half-restored version)"
         try:
-            self.read_manifest(name)
+            self.read_manifest(name, content=content)
         except StoreError as exc:
             return exc.problem
         return None
@@ -451,13 +457,16 @@ class StoreLayout:
     def read_bytes(self, version: str, rel: str) -> bytes:
         return self.version_backend(version).read_bytes(rel)
 
-    def read_manifest(self, version: str) -> dict[str, Any]:
+    def read_manifest(self, version: str, content: Any = _ASK) -> dict[str, Any]:
         """The version's manifest.json, checked (:func:`parse_manifest`); StoreError naming the
-        file when it is missing, unreadable or not a usable manifest."""
+        file when it is missing, unreadable or not a usable manifest. ``content``: the file's
+        :meth:`~dancedata.store.backend.StoreBackend.content_key` when the caller has just
+        asked for it (asked here otherwise)."""
         key = f"{self.version_key(version)}/{MANIFEST_FILE}"
         where = self.backend.where(key)
         try:
-            content = self.backend.content_key(key)
+            if content is _ASK:
+                content = self.backend.content_key(key)
             if content is None:
                 return parse_manifest(self.backend.read_small(key, MANIFEST_LIMIT), where)
             cache_key = (str(where), content)
