@@ -193,10 +193,25 @@ def test_a_lock_from_another_host_is_never_taken_over_automatically(store):
     assert "wrote version v2" in run_cli("segment", str(store), "-q").stdout
 
 
-def test_an_unreadable_lock_file_is_reported_not_silently_removed(store):
+def test_an_unreadable_lock_file_is_reported_not_silently_removed(store, monkeypatch):
+    """A lock file that is not a record is waited on while it is young (a writer without hard
+    links may be filling it: ``_FRESH_S``, shortened here from 5 s), then reported, never
+    removed; an old one is reported at once."""
+    import dancedata.store.lock as lock_module
+
+    monkeypatch.setattr(lock_module, "_FRESH_S", 1.0)
     (store / LOCK_FILE).write_text("garbage", encoding="utf-8")
+    started = time.monotonic()
     with pytest.raises(StoreError, match="not a dancedata lock record"):
         StoreLock(store).acquire()
+    assert time.monotonic() - started >= 0.8  # waited while the file was young
+    assert (store / LOCK_FILE).read_text() == "garbage"
+    old = time.time() - 60
+    os.utime(store / LOCK_FILE, (old, old))
+    started = time.monotonic()
+    with pytest.raises(StoreError, match="not a dancedata lock record"):
+        StoreLock(store).acquire()
+    assert time.monotonic() - started < 0.8  # an old file: no wait
     assert (store / LOCK_FILE).read_text() == "garbage"
     assert "unreadable lock file" in unlock(store, force=True)
 

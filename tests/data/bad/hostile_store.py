@@ -13,6 +13,7 @@ import hashlib
 import json
 import os
 import struct
+import time
 from pathlib import Path
 
 from tests.data.bad.hostile import Command, hostile_case
@@ -527,6 +528,10 @@ def lock_dev_zero(work: Path, store: Path) -> list[Command]:
 @hostile_case("links", note=".lock a FIFO")
 def lock_fifo(work: Path, store: Path) -> list[Command]:
     os.mkfifo(store / ".lock")
+    # a minute old: a young unreadable lock file is waited on for 5 s as one a writer may still
+    # be filling (that wait: tests/store/test_lock.py); here the refusal itself is the case
+    old = time.time() - 60
+    os.utime(store / ".lock", (old, old))
     s = str(store)
     return [
         Command(["validate", s], expect_exit=0, json=True),
