@@ -257,13 +257,12 @@ def test_reads_cost_one_request_each(stores, s3_requests):
     HEAD), no existence check before a read that would fail anyway. Measured before: the
     pointer 5 requests, open_store 29, every array of the demo store 220 (HEAD + GET per
     chunk), ``info`` 235, ``validate`` 1253; after: 1, 10-13, 102, 120 and 707. open_store
-    then asked twice for each manifest's size (a HEAD for "is it a file", one for its ETag):
-    one HEAD per version since, 8-12 requests for the 4 versions here (12 once this
-    process's parsed-manifest cache, bounded, was emptied by earlier tests: 16 before)."""
+    then sent two HEADs per manifest ("is it a file", then its ETag); one since: 8-12 requests
+    for the 4 versions here, 12 when no manifest was parsed before in this process (its
+    parsed-manifest cache is bounded, and earlier tests in a worker can empty it: 16 before)."""
     layout = StoreLayout(stores["url"])
     layout.read_pointer()
     assert dict(s3_requests) == {"get_object": 1}
-    s3_requests.clear()
     versions = layout.version_dirs()
     import dancedata.store.layout as layout_module
 
