@@ -189,8 +189,10 @@ def run() -> None:
     """The ``dancedata`` command: :func:`exit_code`, then :func:`_exit` with it, whatever the
     path (success, error, usage, Ctrl-C, an unexpected exception's traceback)."""
     from dancedata.exec.malloc import tune_malloc
+    from dancedata.exec.numba_cache import use_machine_cache
 
     tune_malloc()  # before any thread starts: buffers reused, not re-faulted (see the module)
+    use_machine_cache()  # before numba is imported: one cache the worker slots seed from
     code = 1
     try:
         code = exit_code()
