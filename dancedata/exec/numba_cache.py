@@ -51,7 +51,7 @@ def use_machine_cache() -> Path | None:
     Why: without it numba caches beside each source file (``__pycache__`` in site-packages and
     in dancedata), which the worker slots under the base cannot seed from, so a first
     ``featurize --workers 2`` after serial runs compiled everything again in each worker
-    (measured on the 24-sequence demo store: 65 CPU s against 8 for the warm serial run), and
+    (measured on the 24-sequence demo store: 69 CPU s against 9 for the warm serial run), and
     which a system-wide install cannot write at all. An empty base is first seeded from its
     slots (:func:`seed_cache_folder`)."""
     if os.environ.get(ENV_VAR) or "numba" in sys.modules:
