@@ -136,9 +136,17 @@ def test_a_seed_skips_links_and_files_still_being_written(tmp_path) -> None:
     assert sorted(p.name for p in target.iterdir()) == [entry.name]
 
 
-def _without_numba_cache_dir(**extra: str) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
-    return {**env, **extra}
+def _use_machine_cache_in_a_fresh_process(env: dict[str, str]) -> list[str]:
+    """``use_machine_cache()`` in a new interpreter (numba not imported yet, as in a starting
+    ``dancedata`` command): its return value and the ``NUMBA_CACHE_DIR`` it leaves."""
+    import subprocess
+    import sys
+
+    code = "import os; from dancedata.exec.numba_cache import use_machine_cache as u; "
+    code += "print(u(), os.environ['NUMBA_CACHE_DIR'])"
+    return subprocess.run(
+        [sys.executable, "-c", code], env=env, check=True, capture_output=True, text=True
+    ).stdout.split()
 
 
 def test_the_command_caches_where_worker_slots_seed_from(tmp_path) -> None:
@@ -155,44 +163,34 @@ def test_the_command_caches_where_worker_slots_seed_from(tmp_path) -> None:
     raw, store = tmp_path / "raw", tmp_path / "store"
     synth_aist(raw, n_sequences=1, seed=3)
     xdg = tmp_path / "xdg"
-    env = _without_numba_cache_dir(XDG_CACHE_HOME=str(xdg), DANCEDATA_CACHE=str(tmp_path / "fc"))
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env.update(XDG_CACHE_HOME=str(xdg), DANCEDATA_CACHE=str(tmp_path / "fc"))
     cli = [sys.executable, "-m", "dancedata.cli"]
     for argv in (["ingest", "aist", str(raw), "--store", str(store)], ["featurize", str(store)]):
         extra = ["--no-audio"] if argv[0] == "featurize" else []  # motion kernels only
         subprocess.run([*cli, *argv, "-q", *extra], env=env, check=True, capture_output=True)
     assert numba_entries(xdg / "dancedata" / "numba"), "featurize compiled nothing into the base"
-    code = "import os; from dancedata.exec.numba_cache import use_machine_cache as u; "
-    code += "print(u(), os.environ['NUMBA_CACHE_DIR'])"
-    kept = subprocess.run(
-        [sys.executable, "-c", code],
-        env={**env, "NUMBA_CACHE_DIR": str(tmp_path / "mine")},
-        check=True, capture_output=True, text=True,
-    ).stdout.split()  # fmt: skip
-    assert kept == ["None", str(tmp_path / "mine")]
-    chosen = subprocess.run(
-        [sys.executable, "-c", code], env=env, check=True, capture_output=True, text=True
-    ).stdout.split()
-    assert chosen == [str(xdg / "dancedata" / "numba")] * 2
+    mine = str(tmp_path / "mine")
+    assert _use_machine_cache_in_a_fresh_process({**env, "NUMBA_CACHE_DIR": mine}) == [
+        "None",
+        mine,
+    ]
+    assert _use_machine_cache_in_a_fresh_process(env) == [str(xdg / "dancedata" / "numba")] * 2
 
 
-def test_an_empty_base_is_seeded_from_its_worker_slots(tmp_path, monkeypatch) -> None:
+def test_an_empty_base_is_seeded_from_its_worker_slots(tmp_path) -> None:
     """A first serial run after parallel ones loads what the worker slots compiled."""
-    import sys
-
-    from dancedata.exec import numba_cache
-
-    base = tmp_path / "numba"
+    xdg = tmp_path / "xdg"
+    base = xdg / "dancedata" / "numba"
     entry = base / "worker-1" / f"src_{'c' * 40}"
     entry.mkdir(parents=True)
     (entry / "f-1.py311.nbi").write_bytes(b"index")
     (entry / "f-1.py311.1.nbc").write_bytes(b"data")
-    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
-    monkeypatch.setattr(numba_cache, "numba_cache_base", lambda: base)
-    # as in a fresh ``dancedata`` process: numba not imported yet (put back after the test;
-    # nothing here imports it)
-    monkeypatch.delitem(sys.modules, "numba", raising=False)
-    assert numba_cache.use_machine_cache() == base
-    assert os.environ["NUMBA_CACHE_DIR"] == str(base)
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    assert (
+        _use_machine_cache_in_a_fresh_process({**env, "XDG_CACHE_HOME": str(xdg)})
+        == [str(base)] * 2
+    )
     assert sorted(p.name for p in (base / entry.name).iterdir()) == [
         "f-1.py311.1.nbc",
         "f-1.py311.nbi",
