@@ -38,6 +38,7 @@ from dancedata.store.validate import validate_store
 from dancedata.synth.aist import synth_aist
 
 TRANS = "data.zarr/motion/trans/c/0/0"
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"  # a zstd frame's first four bytes (0xFD2FB528, little-endian)
 
 
 @pytest.fixture(scope="module")
@@ -72,22 +73,29 @@ def _rewrite(path: Path, data: bytes) -> None:
         handle.truncate()
 
 
-def _silent_flip(chunk: Path) -> tuple[bytes, int]:
-    """A copy of a crc32c chunk with one byte of its zstd payload flipped such that zstd alone
-    still decodes it, to different numbers: the damage a reader without a checksum would pass
-    on. Returns (damaged bytes, offset)."""
-    from numcodecs import Zstd
+def _decode(payload: bytes) -> bytes:
+    """A chunk's compressed payload (crc32c removed) decoded by its codec, zstd or blosc, as a
+    reader that skips the checksum would."""
+    from numcodecs import Blosc, Zstd
 
+    codec = Zstd() if payload[:4] == ZSTD_MAGIC else Blosc()
+    return bytes(codec.decode(payload))
+
+
+def _silent_flip(chunk: Path) -> tuple[bytes, int]:
+    """A copy of a crc32c chunk with one byte of its compressed payload flipped such that its
+    codec alone still decodes it, to different numbers: the damage a reader without a checksum
+    would pass on. Returns (damaged bytes, offset)."""
     raw = chunk.read_bytes()
-    payload, good = raw[:-4], Zstd().decode(raw[:-4])
+    payload, good = raw[:-4], _decode(raw[:-4])
     for offset in range(len(payload) // 2, len(payload)):
         damaged = bytearray(payload)
         damaged[offset] ^= 0x01
         try:
-            decoded = Zstd().decode(bytes(damaged))
+            decoded = _decode(bytes(damaged))
         except Exception:
             continue
-        if bytes(decoded) != bytes(good):
+        if decoded != good:
             return bytes(damaged) + raw[-4:], offset
     raise AssertionError("no silently-decodable flip found")
 
@@ -151,9 +159,7 @@ def test_flipped_byte_raises_naming_array_and_chunk(store):
     assert f"{vdir / 'data.zarr'}: array motion/trans chunk c/0/0: crc32c" in message
     # a reader that skips the checksum gets wrong numbers without a word: the threat is real
     plain = zarr.open_array(vdir / "data.zarr" / "motion" / "trans", mode="r")
-    from numcodecs import Zstd
-
-    unchecked = np.frombuffer(Zstd().decode(damaged[:-4]), np.float32).reshape(-1, 3)
+    unchecked = np.frombuffer(_decode(damaged[:-4]), np.float32).reshape(-1, 3)
     assert not np.array_equal(unchecked[: len(good)], good[: len(unchecked)])
     with pytest.raises(ValueError, match="checksum"):
         plain[:10]  # zarr itself refuses it too, without naming the chunk

@@ -45,15 +45,6 @@ CHUNKS_PER_WRITE = 4
 TIMESTAMP_TOLERANCE_US = 2.0
 
 
-def keypoint_compressors() -> Any:
-    """Blosc(zstd level 1, byte shuffle) for the keypoint arrays: on real AIST++ keypoints2d the
-    same size as zarr's default zstd (≈62 %), on noisier data smaller, and about 1.5× faster
-    to write (the default spends most of an AIST++-scale ingest compressing keypoints2d)."""
-    from zarr.codecs import BloscCodec
-
-    return BloscCodec(cname="zstd", clevel=1, shuffle="shuffle")
-
-
 @dataclass(frozen=True)
 class SequenceAnnotations:
     """The keypoint annotations read for one sequence (None where the file is absent)."""
@@ -119,7 +110,6 @@ def annotation_arrays(keypoints3d: bool, keypoints2d: bool) -> list[StoredArray]
                     (N_KEYPOINTS, 3),
                     np.float32,
                     attrs={"units": "m", "skeleton": skeleton, "note": note, "missing": "NaN"},
-                    compressors=keypoint_compressors(),
                     chunks_per_write=CHUNKS_PER_WRITE,
                 )
             )
@@ -137,7 +127,6 @@ def annotation_arrays(keypoints3d: bool, keypoints2d: bool) -> list[StoredArray]
                     "skeleton": skeleton,
                     "missing": "NaN",
                 },
-                compressors=keypoint_compressors(),
                 chunks_per_write=CHUNKS_PER_WRITE,
             )
         )
@@ -147,7 +136,6 @@ def annotation_arrays(keypoints3d: bool, keypoints2d: bool) -> list[StoredArray]
                 (N_VIEWS,),
                 np.float32,
                 attrs={"views": list(VIEW_NAMES), "missing": "NaN"},
-                compressors=keypoint_compressors(),
                 chunks_per_write=CHUNKS_PER_WRITE,
             )
         )

@@ -416,10 +416,16 @@ def with_crc32c(data: bytes) -> bytes:
 
 @hostile_case("arrays", note="a zstd chunk of 25 kB that decodes to 800 MB, crc32c matching")
 def zstd_bomb(work: Path, store: Path) -> list[Command]:
-    # the first chunk of every zstd motion array: whichever one a command reads
+    # Every motion array but the keypoints declared zstd (a store may use any standard codec;
+    # dancedata writes blosc), its first chunk the bomb: whichever one a command reads.
     for meta in (version(store) / "data.zarr" / "motion").glob("*/zarr.json"):
-        if "zstd" not in [c.get("name") for c in json.loads(meta.read_text())["codecs"]]:
+        if meta.parent.name.startswith(("keypoints", "det_scores")):
             continue
+
+        def to_zstd(m: dict) -> None:
+            m["codecs"][1] = {"name": "zstd", "configuration": {"level": 0, "checksum": False}}
+
+        edit_array_meta(version(store), f"motion/{meta.parent.name}", to_zstd)
         for chunk in (meta.parent / "c").rglob("*"):
             if chunk.is_file():
                 replace(chunk, with_crc32c(zstd_rle_bomb(800 * 1024 * 1024)))
