@@ -235,6 +235,20 @@ def _short_path(name: object) -> str:
     return text if len(text) <= 160 else f"{text[:80]}…{text[-79:]}"
 
 
+def _caused_by_ctrl_c(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in ``exc``'s chain of causes: Ctrl-C while a module's C
+    extension initialises surfaces as ``ImportError: initialization failed`` raised from the
+    KeyboardInterrupt, and is an interrupt all the same (130), not a crash."""
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        if isinstance(current, KeyboardInterrupt):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False
+
+
 def _path_problem(exc: BaseException) -> tuple[str | None, str] | None:
     """(file, problem) when ``exc`` is about a path the user gave rather than a bug: an OSError
     naming a file (a component over 255 bytes, a path that is not a folder, no permission,
@@ -270,6 +284,9 @@ def main() -> None:
         message = exc.format_message()  # type: ignore[attr-defined]
         _fail(message, exc.exit_code, as_json=as_json, kind="usage")  # type: ignore[attr-defined]
     except Exception as exc:
+        if _caused_by_ctrl_c(exc):
+            typer.echo(INTERRUPTED, err=True)
+            _fail(INTERRUPTED, EXIT_INTERRUPTED, as_json=as_json, kind="interrupted")
         # The storage failed under the command (an object store that cannot be reached or
         # refuses the credentials, a full disk): one line naming the endpoint, not a traceback.
         from dancedata.store.fs import storage_problem

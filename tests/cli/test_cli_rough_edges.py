@@ -89,6 +89,34 @@ def test_ctrl_c_says_interrupted_cleans_up_and_a_rerun_resumes(aist_store, tmp_p
     assert not list((store / "versions").glob(".tmp-*"))
 
 
+def test_ctrl_c_while_a_c_extension_imports_is_an_interrupt(tmp_path, monkeypatch, capsys):
+    """Ctrl-C while a lazily imported C extension initialises reaches the command as
+    ``ImportError: initialization failed`` raised from the KeyboardInterrupt (seen in a full
+    run of the test above): still exit 130 and the one line, not a traceback and 1."""
+    from dancedata.cli.main import exit_code
+
+    import dancedata.featurize.featurize as featurize_module
+
+    def interrupted_import(*args: object, **kwargs: object) -> None:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise ImportError("initialization failed") from exc
+
+    monkeypatch.setattr(featurize_module, "featurize", interrupted_import)
+    monkeypatch.setattr(sys, "argv", ["dancedata", "featurize", str(tmp_path), "--json"])
+    assert exit_code() == 130
+    out, err = capsys.readouterr()
+    assert json.loads(out) == {
+        "error": "interrupted; run again to resume",
+        "exit_code": 130,
+        "kind": "interrupted",
+        "file": None,
+    }
+    assert err.strip().splitlines()[-1] == "interrupted; run again to resume"
+    assert "Traceback" not in err
+
+
 # ------------------------------------------------------------------------------ --json errors
 
 
