@@ -38,4 +38,5 @@ EXAMPLES: dict[str, str] = {
     "report": f"dancedata report {S} report.html",
     "cache list": "dancedata cache list",
     "cache clear": "dancedata cache clear --older-than 30",
+    "cache warm": "dancedata cache warm",
 }

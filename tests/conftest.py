@@ -22,6 +22,8 @@ import pytest
 # librosa's beat tracker and our kernels costs a worker about a minute of CPU, once per machine
 # instead of once per run) and held under an exclusive lock for the whole session, so a second
 # session running at the same time takes the next folder or, failing that, a temporary one.
+# An empty folder is first seeded from the machine's cache (``dancedata cache warm``, which
+# ``make test`` runs before pytest): without it, each worker compiled the same kernels at once.
 _NUMBA_LOCKS: list = []
 
 
@@ -51,7 +53,16 @@ def _numba_cache_of_this_worker() -> str:
     return folder
 
 
-os.environ["NUMBA_CACHE_DIR"] = _numba_cache_of_this_worker()
+def _seeded(folder: str) -> str:
+    """``folder``, first filled from the machine's numba cache when it holds nothing."""
+    from dancedata.exec.numba_cache import numba_cache_base, seed_cache_folder, seed_sources
+
+    machine = numba_cache_base()  # NUMBA_CACHE_DIR as the user set it, else ~/.cache/...
+    seed_cache_folder(Path(folder), seed_sources(machine))
+    return folder
+
+
+os.environ["NUMBA_CACHE_DIR"] = _seeded(_numba_cache_of_this_worker())
 
 
 def _pin_threads_of_this_worker() -> None:

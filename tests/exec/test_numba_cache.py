@@ -195,3 +195,47 @@ def test_an_empty_base_is_seeded_from_its_worker_slots(tmp_path) -> None:
         "f-1.py311.1.nbc",
         "f-1.py311.nbi",
     ]
+
+
+def test_cache_warm_compiles_what_featurize_runs_into_the_machine_cache(tmp_path) -> None:
+    """``dancedata cache warm`` fills the machine's numba folder with what featurize compiles:
+    from a copy of this worker's folder with two of dancedata's NMFD kernels removed (so the
+    command must compile them, not load them; the others would cost ~15 s more), it writes
+    them back, leaves no sample behind, and a second run compiles nothing more."""
+    import json
+    import shutil
+    import subprocess
+    import sys
+
+    from dancedata.exec.numba_cache import numba_entries
+
+    base = tmp_path / "xdg" / "dancedata" / "numba"
+    slots = shutil.ignore_patterns("worker-*", "dask-*", "concurrent-*")
+    shutil.copytree(os.environ["NUMBA_CACHE_DIR"], base, symlinks=True, ignore=slots)
+    removed = ("jit_kernels.kl_ratio-", "jit_kernels.divide_where_above-")
+    for entry in numba_entries(base):
+        for path in entry.iterdir():
+            if path.name.startswith(removed):
+                path.unlink()
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env.update(XDG_CACHE_HOME=str(tmp_path / "xdg"), TMPDIR=str(scratch))
+    argv = [sys.executable, "-m", "dancedata.cli", "cache", "warm", "--json"]
+
+    def warm() -> dict:
+        proc = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        return json.loads(proc.stdout)
+
+    first = warm()
+    assert first["numba_cache_dir"] == str(base)
+    found = {p.name.rsplit("-", 1)[0] for e in numba_entries(base) for p in e.glob("*.nbi")}
+    assert {"jit_kernels.kl_ratio", "jit_kernels.divide_where_above"} <= found
+    assert {"jit_kernels.beat_track_dp", "jit_kernels.window_median", "utils._localmax",
+            "rotation_kernels._convert_all", "guf-beat.__beat_track_dp"} <= found  # fmt: skip
+    assert first["compiled_files_after"] >= first["compiled_files_before"] + 4  # 2 × (nbi, nbc)
+    assert list(scratch.iterdir()) == []  # the sample and its store are gone
+    second = warm()
+    assert second["compiled_files_before"] == second["compiled_files_after"]
+    assert second["compiled_files_after"] == first["compiled_files_after"]
