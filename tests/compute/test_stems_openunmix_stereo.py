@@ -239,16 +239,19 @@ def _band_power(y: np.ndarray, low_hz: float) -> float:
 
 
 def test_long_track_whole_and_overlap_add(folder, tmp_path) -> None:
-    """A 41 s track: whole-track separation equals openunmix's; the old 30 s / 1 s chunks and
-    the memory-forced overlap-add path are measured against it."""
+    """A 41 s track: whole-track separation equals openunmix's; the memory-forced overlap-add
+    path is measured against it. The old 30 s / 1 s chunks (28.2-31.4 dB, see below) are only
+    planned here: their separation is what the chunk_seconds cases of test_stems_openunmix.py
+    run, and its SNR was a printed figure, not a check."""
     audio = stereo_track(41.0, seed=2)
     path = write_track(tmp_path / "long.wav", audio)
     whole = {k: v.mean(axis=0) for k, v in openunmix_reference(folder, path).items()}
     ours, plan = stem_separation.separate_channels(audio, FILE_SR, weights_dir=folder)
     assert plan["method"] == "whole_track"
-    chunked_30, old_plan = stem_separation.separate_channels(
-        audio, FILE_SR, weights_dir=folder, chunk_seconds=30.0, overlap_seconds=1.0
-    )
+    old_plan = umx.separation_plan(
+        audio.shape[-1], FILE_SR, n_fft=NFFT, n_hop=NHOP, channels=2, chunk_seconds=30.0,
+        overlap_seconds=1.0,
+    )  # fmt: skip
     assert old_plan["method"] == "overlap_add_crossfade"
     small, small_plan = stem_separation.separate_channels(
         audio, FILE_SR, weights_dir=folder, memory_mb=520.0
@@ -256,7 +259,7 @@ def test_long_track_whole_and_overlap_add(folder, tmp_path) -> None:
     assert small_plan["method"] == "overlap_add_crossfade"
     snr = {
         name: {stem: snr_db(result[stem], whole[stem]) for stem in STEM_NAMES}
-        for name, result in (("whole", ours), ("chunks_30s_1s", chunked_30), ("ola_15s_4s", small))
+        for name, result in (("whole", ours), ("ola_15s_4s", small))
     }
     print("SNR dB vs whole-track openunmix:", json.dumps(snr, indent=1), small_plan)
     assert small_plan["chunk_seconds"] == 15.0 and small_plan["overlap_seconds"] == 4.0
