@@ -91,19 +91,18 @@ pipeline: $(STAMP) $(VIZ_STAMP)
 # Tests use a temporary feature cache (tests/conftest.py sets DANCEDATA_CACHE), never ~/.cache.
 # pytest-xdist runs them on PYTEST_WORKERS processes (auto: one per core), each taking whole
 # test files (--dist loadfile), so a module's store fixture is built once, not once per worker.
-# `dancedata cache warm` first compiles the numba kernels once into the machine's cache
-# (~35 s on a new machine, ~5 s after), which each worker's own numba folder is seeded from:
-# otherwise both workers compile the same kernels at the same time in their first minute.
+# Each worker's numba folder starts as a copy of the machine's cache (what `make pipeline`, any
+# `dancedata featurize` or `dancedata cache warm` compiled). `make test` does not warm it
+# itself: measured on a new machine, the warm-up's 36 s (one core) bought 29 s of tests, because
+# without it the two workers compile side by side.
 PYTEST_WORKERS ?= auto
 PYTEST_PARALLEL = -n $(PYTEST_WORKERS) --dist loadfile
 test: $(DEV_STAMP) $(STEMS_STAMP) $(VIZ_STAMP) browser
-	$(BIN)/dancedata cache warm --quiet
 	$(PY) -m pytest -q $(PYTEST_PARALLEL)
 
 # The tests not marked slow (subprocess kills, S3, Dask, rendering, OpenUnmix, whole-store runs):
 # the run to repeat while working, under two minutes on two cores.
 test-fast: $(DEV_STAMP) $(STEMS_STAMP) $(VIZ_STAMP)
-	$(BIN)/dancedata cache warm --quiet
 	$(PY) -m pytest -q $(PYTEST_PARALLEL) -m "not slow"
 
 # bench_batching.py needs torch: the stems stamp installs the pinned torch build.

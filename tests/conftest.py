@@ -22,8 +22,8 @@ import pytest
 # librosa's beat tracker and our kernels costs a worker about a minute of CPU, once per machine
 # instead of once per run) and held under an exclusive lock for the whole session, so a second
 # session running at the same time takes the next folder or, failing that, a temporary one.
-# An empty folder is first seeded from the machine's cache (``dancedata cache warm``, which
-# ``make test`` runs before pytest): without it, each worker compiled the same kernels at once.
+# An empty folder is first seeded from the machine's cache (what ``make pipeline``, any
+# ``dancedata featurize`` or ``dancedata cache warm`` compiled), so it compiles only the rest.
 _NUMBA_LOCKS: list = []
 
 
