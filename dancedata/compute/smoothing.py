@@ -12,7 +12,6 @@ quaternion curves are made sign-continuous, filtered per component, then renorma
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 from dancedata.compute.rotations import quat_sign_continuous
 
@@ -31,6 +30,10 @@ def butterworth_lowpass(
         raise ValueError(f"cutoff {cutoff_hz} Hz must lie between 0 and fps/2 = {fps / 2} Hz")
     if order < 1:
         raise ValueError(f"order must be at least 1, got {order}")
+    # imported here, not with the module: scipy.signal (and the scipy.stats it imports) takes
+    # ~0.4-0.8 s to import, which every BVH or generated-motion ingest paid without smoothing
+    from scipy.signal import butter, sosfiltfilt
+
     x = np.asarray(x, dtype=np.float64)
     n = x.shape[axis]
     if n < 2:

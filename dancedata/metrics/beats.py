@@ -27,7 +27,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy.signal import find_peaks
 
 from dancedata.compute.motion_features import (
     beat_align_score_bailando,
@@ -136,6 +135,8 @@ def decimate_beats(beats: np.ndarray, step: int) -> np.ndarray:
 def motion_beats_choreograph(positions: np.ndarray, fps: float) -> np.ndarray:
     """ChoreoGraph motion beats: local minima of the mean joint speed (``find_peaks`` of the
     negated speed, no height/distance/prominence). Speed index t is the step t → t+1."""
+    from scipy.signal import find_peaks  # here: scipy.signal takes ~0.5 s to import
+
     p = _positions(positions)
     speed = np.linalg.norm((p[1:] - p[:-1]) * fps, axis=-1).mean(axis=1)
     return find_peaks(-speed)[0]

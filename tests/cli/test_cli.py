@@ -132,3 +132,30 @@ def test_validate_flags_a_broken_store(tmp_path):
     proc = run_cli("validate", str(store), check=False)
     assert proc.returncode == 1
     assert "frame range != n_frames" in proc.stderr
+
+
+@pytest.mark.parametrize("smooth", [False, True])
+def test_bvh_ingest_imports_scipy_signal_only_to_smooth(tmp_path, smooth):
+    """scipy.signal (with the scipy.stats it imports) costs 0.4-0.8 s to import: a BVH ingest
+    without ``--smooth-cutoff`` must not pay it, one with it uses it and smooths."""
+    from tests.ingest.test_ingest_bvh import synthetic_bvh
+
+    turn = np.zeros((60, 3))
+    turn[::2, 0] = 4.0  # a 15 Hz zig-zag, so smoothing visibly changes the rotations
+    bvh = synthetic_bvh(tmp_path / "zig.bvh", 30.0, turn)
+    store = tmp_path / "store"
+    argv = ["ingest", "bvh", str(bvh), "--store", str(store), "-q"]
+    loaded = _modules_loaded_by(argv + (["--smooth-cutoff", "3"] if smooth else []))
+    assert ("scipy.signal" in loaded) is smooth
+    assert StoreLayout(store).latest() == "v1"
+
+
+def test_metric_modules_import_without_scipy_signal():
+    """The metric registry (every evaluate and experiment command's options) imports the
+    metric modules; scipy.signal is imported only by the metric that finds peaks."""
+    code = (
+        "import sys, dancedata.metrics, dancedata.study, dancedata.ingest.generated.source\n"
+        "print('scipy.signal' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
