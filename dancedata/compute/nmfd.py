@@ -147,9 +147,9 @@ def _single_thread_blas() -> Any:
     """One BLAS thread: these products are too thin to gain from threads, and on a busy machine
     OpenBLAS's spinning threads made them 10–30× slower (measured: 27 s vs 2.5 s for 4 s of audio).
     threadpoolctl comes with scikit-learn, which librosa requires."""
-    from threadpoolctl import threadpool_limits
+    from dancedata.compute.thread_pools import one_thread
 
-    return threadpool_limits(limits=1, user_api="blas")
+    return one_thread("blas")
 
 
 def _iterate(

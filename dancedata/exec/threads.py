@@ -60,14 +60,14 @@ def single_threaded() -> Iterator[None]:
     """
     import sys
 
+    from dancedata.compute.thread_pools import one_thread
+
     torch = sys.modules.get("torch")
     torch_threads = torch.get_num_threads() if torch is not None else None
     try:
-        from threadpoolctl import threadpool_limits
+        limits = one_thread()
     except ImportError:  # pragma: no cover - threadpoolctl comes with librosa's dependencies
         limits = contextlib.nullcontext()
-    else:
-        limits = threadpool_limits(limits=1)
     try:
         if torch is not None:
             torch.set_num_threads(1)

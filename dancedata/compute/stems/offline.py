@@ -200,9 +200,9 @@ def single_thread_blas() -> Any:
     """One BLAS thread for the similarity products: threads add CPU time here (measured 0.34
     against 0.10 CPU s on 30 s of audio, two cores) and gain little wall time on a busy
     machine. threadpoolctl comes with scikit-learn, which librosa requires."""
-    from threadpoolctl import threadpool_limits
+    from dancedata.compute.thread_pools import one_thread
 
-    return threadpool_limits(limits=1, user_api="blas")
+    return one_thread("blas")
 
 
 def repetition_foreground(
