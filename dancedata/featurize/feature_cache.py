@@ -35,12 +35,12 @@ import uuid
 import zipfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from dancedata._version import installed_version
 from dancedata.store.checksums import canonical_json
 
 ENV_VAR = "DANCEDATA_CACHE"
@@ -63,13 +63,7 @@ def default_cache_dir() -> Path:
 
 def library_versions(names: Iterable[str]) -> dict[str, str]:
     """Installed version of each distribution (``"absent"`` when not installed); no imports."""
-    out: dict[str, str] = {}
-    for name in names:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = "absent"
-    return out
+    return {name: installed_version(name) or "absent" for name in names}
 
 
 def cache_key(

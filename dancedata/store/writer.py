@@ -38,7 +38,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from dancedata._version import __version__
+from dancedata._version import __version__, installed_version
 from dancedata.errors import DancedataError, StoreError
 from dancedata.store.backend import StoreBackend, json_bytes
 from dancedata.store.build import BUILD_DIR, PREPARED_FILE, BuildArea
@@ -60,14 +60,11 @@ if TYPE_CHECKING:
 
 def library_versions() -> dict[str, str]:
     """Versions of the libraries whose output lands in a store."""
-    from importlib import metadata
-
     found = {"dancedata": __version__}
     for name in ("numpy", "scipy", "librosa", "zarr", "pyarrow", "soundfile", "numba"):
-        try:
-            found[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            continue
+        version = installed_version(name)
+        if version is not None:
+            found[name] = version
     return found
 
 

@@ -332,3 +332,35 @@ def test_cache_cli_lists_and_clears(raw, tmp_path) -> None:
     gone = json.loads(run_cli("cache", "clear", "--json", env=env).stdout)
     assert gone["removed"] == 2 and gone["cache_dir"] == str(cache_dir)
     assert FeatureCache(cache_dir).entries() == []
+
+
+def test_library_versions_are_the_installed_ones_read_once_per_process():
+    """The versions in cache keys and manifests are importlib.metadata's, and each is read once
+    per process (a look-up scans site-packages; featurize asks per track and family)."""
+    from importlib import metadata
+
+    from dancedata._version import installed_version
+    from dancedata.featurize.feature_cache import library_versions
+    from dancedata.store.writer import library_versions as manifest_libraries
+
+    names = ("numpy", "scipy", "librosa", "no-such-distribution-here")
+    got = library_versions(names)
+    assert got == {
+        "numpy": metadata.version("numpy"),
+        "scipy": metadata.version("scipy"),
+        "librosa": metadata.version("librosa"),
+        "no-such-distribution-here": "absent",
+    }
+    recorded = manifest_libraries()
+    assert recorded.pop("dancedata") == dancedata_version()
+    assert recorded == {n: metadata.version(n) for n in recorded}
+    assert "zarr" in recorded and "pyarrow" in recorded
+    hits = installed_version.cache_info().hits
+    library_versions(names)
+    assert installed_version.cache_info().hits == hits + len(names)
+
+
+def dancedata_version() -> str:
+    import dancedata
+
+    return dancedata.__version__
