@@ -8,7 +8,6 @@ sha256 recorded in checksums.json for arrays written before).
 
 from __future__ import annotations
 
-import contextlib
 import functools
 from functools import cached_property
 from pathlib import Path
@@ -186,18 +185,11 @@ def parquet_table(data: bytes) -> pa.Table:
     ``read_table`` over io.BytesIO did so in about one run in three; ``read_table`` over an
     Arrow buffer with ``use_threads=False`` still started a scanner thread, and did so in about
     1 run in 40 (2 in 40 with every numeric thread pool pinned to one thread).
-    ``ParquetFile.read`` starts none (0 in 60). The tables are small.
-
-    pyarrow imports pandas (when installed) on its first conversion of a column; ``read_table``
-    did so here, at a command's first table read, before any lock is taken. Done here for that
-    reason: imported later, inside a locked write, a Ctrl-C landing in that import left pandas
-    half-initialised and the interrupted command's cleanup failed with an AttributeError
-    traceback instead of saying "interrupted" (tests/cli/test_cli_rough_edges.py)."""
+    ``ParquetFile.read`` starts none (0 in 60). The tables are small. It does not import
+    pandas either (a writer does, before it locks: ``store.writer.import_before_locking``)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    with contextlib.suppress(ImportError):  # pandas is optional
-        import pandas  # noqa: F401
     return pq.ParquetFile(pa.BufferReader(data)).read(use_threads=False)
 
 

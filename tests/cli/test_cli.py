@@ -159,3 +159,44 @@ def test_metric_modules_import_without_scipy_signal():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+@pytest.fixture(scope="module")
+def one_sequence_store(tmp_path_factory):
+    root = tmp_path_factory.mktemp("one-sequence")
+    synth_aist(root / "raw", n_sequences=1, seed=0)
+    run_cli("ingest", "aist", str(root / "raw"), "--store", str(root / "store"), "-q")
+    return root / "store"
+
+
+@pytest.mark.parametrize("command", ["validate", "info"])
+def test_commands_that_only_read_do_not_import_pandas(one_sequence_store, command):
+    """Reading a store's tables never needs pandas (0.2-0.25 s to import)."""
+    assert "pandas" not in _modules_loaded_by([command, str(one_sequence_store)])
+
+
+def test_a_writer_has_pandas_imported_before_it_takes_the_lock(one_sequence_store, tmp_path):
+    """pyarrow imports pandas while building tables; a Ctrl-C inside that import, under the
+    lock, once broke the interrupted command's cleanup. So a writer imports it first."""
+    import shutil
+
+    store = tmp_path / "store"
+    shutil.copytree(one_sequence_store, store)
+    code = (
+        "import sys\n"
+        "from dancedata.store import lock\n"
+        "seen = []\n"
+        "take = lock.StoreLock.acquire\n"
+        "def acquire(self):\n"
+        "    seen.append('pandas' in sys.modules)\n"
+        "    return take(self)\n"
+        "lock.StoreLock.acquire = acquire\n"
+        f"sys.argv = ['dancedata', 'segment', {str(store)!r}, '-q']\n"
+        "from dancedata.cli.main import main\n"
+        "try:\n    main()\nexcept SystemExit:\n    pass\n"
+        "print('SEEN', seen)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    seen = out.stdout[out.stdout.rindex("SEEN") + 4 :].strip()
+    assert seen.startswith("[True") and "False" not in seen, out.stdout + out.stderr
+    assert StoreLayout(store).latest() == "v2"
