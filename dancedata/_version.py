@@ -11,7 +11,8 @@ __version__ = "0.1.0"
 def installed_version(distribution: str) -> str | None:
     """The installed version of ``distribution`` (``importlib.metadata.version``), None when it
     is not installed. Read once per process: a look-up scans the metadata folders of
-    site-packages (~0.6 ms each), and featurize records seven of them per track and family."""
+    site-packages (~0.6 ms each), and featurize asks for several per track and family (cache
+    keys) besides the seven of every manifest."""
     from importlib import metadata
 
     try:

@@ -339,7 +339,7 @@ def test_library_versions_are_the_installed_ones_read_once_per_process():
     per process (a look-up scans site-packages; featurize asks per track and family)."""
     from importlib import metadata
 
-    from dancedata._version import installed_version
+    from dancedata._version import __version__, installed_version
     from dancedata.featurize.feature_cache import library_versions
     from dancedata.store.writer import library_versions as manifest_libraries
 
@@ -352,15 +352,9 @@ def test_library_versions_are_the_installed_ones_read_once_per_process():
         "no-such-distribution-here": "absent",
     }
     recorded = manifest_libraries()
-    assert recorded.pop("dancedata") == dancedata_version()
+    assert recorded.pop("dancedata") == __version__
     assert recorded == {n: metadata.version(n) for n in recorded}
     assert "zarr" in recorded and "pyarrow" in recorded
     hits = installed_version.cache_info().hits
     library_versions(names)
     assert installed_version.cache_info().hits == hits + len(names)
-
-
-def dancedata_version() -> str:
-    import dancedata
-
-    return dancedata.__version__
