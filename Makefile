@@ -92,20 +92,12 @@ pipeline: $(STAMP) $(VIZ_STAMP)
 # pytest-xdist runs them on PYTEST_WORKERS processes (auto: one per core), each taking whole
 # test files (--dist loadfile), so a module's store fixture is built once, not once per worker.
 # Each worker's numba folder starts as a copy of the machine's cache (what `make pipeline`, any
-# `dancedata featurize` or `dancedata cache warm` compiled). `make test` runs the warm-up in the
-# background while pip installs the test extras, which keep one core busy at most: on a new
-# machine the two workers would otherwise compile the same kernels side by side in their first
-# minutes (a cold suite ran 50-65 s longer than a warm one). Run serially before pytest instead,
-# the warm-up's 36 s of one core bought only 29 s of tests. Its output goes to NUMBA_WARM_LOG; if
-# it fails, the workers compile as before. With the extras installed already it costs ~4 s.
-NUMBA_WARM_LOG := $(VENV)/cache-warm.log
+# `dancedata featurize` or `dancedata cache warm` compiled). `make test` does not warm it
+# itself: measured on a new machine, the warm-up's 36 s (one core) bought 29 s of tests, because
+# without it the two workers compile side by side.
 PYTEST_WORKERS ?= auto
 PYTEST_PARALLEL = -n $(PYTEST_WORKERS) --dist loadfile
-test: $(STAMP)
-	@$(BIN)/dancedata cache warm -q > $(NUMBA_WARM_LOG) 2>&1 & warm=$$!; \
-	$(MAKE) --no-print-directory $(DEV_STAMP) $(STEMS_STAMP) $(VIZ_STAMP) browser; deps=$$?; \
-	wait $$warm || echo "dancedata cache warm failed (see $(NUMBA_WARM_LOG)); the test workers compile instead"; \
-	exit $$deps
+test: $(DEV_STAMP) $(STEMS_STAMP) $(VIZ_STAMP) browser
 	$(PY) -m pytest -q $(PYTEST_PARALLEL)
 
 # The tests not marked slow (subprocess kills, S3, Dask, rendering, OpenUnmix, whole-store runs):
