@@ -94,7 +94,8 @@ pipeline: $(STAMP) $(VIZ_STAMP)
 # Each worker's numba folder starts as a copy of the machine's cache (what `make pipeline`, any
 # `dancedata featurize` or `dancedata cache warm` compiled). `make test` does not warm it
 # itself: measured on a new machine, the warm-up's 36 s (one core) bought 29 s of tests, because
-# without it the two workers compile side by side.
+# without it the two workers compile side by side; run in the background while pip installed the
+# extras, it slowed the installs by ~20 s and the tests were no faster (bench/RESULTS.md, 2026-12-08).
 PYTEST_WORKERS ?= auto
 PYTEST_PARALLEL = -n $(PYTEST_WORKERS) --dist loadfile
 test: $(DEV_STAMP) $(STEMS_STAMP) $(VIZ_STAMP) browser

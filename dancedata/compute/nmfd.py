@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from dancedata.compute.thread_pools import one_thread
 from dancedata.errors import InputError
 
 NMFD_COMPONENTS: tuple[str, ...] = ("kick", "snare", "hihat")
@@ -137,19 +138,12 @@ def nmfd(
     # update is one large matrix product instead of T thin ones (thin ones scale badly on BLAS).
     wf = _flat_templates(w)
     valid = min(n_lags, n_frames)
-    with _single_thread_blas():
+    # One BLAS thread: these products are too thin to gain from threads, and on a busy machine
+    # OpenBLAS's spinning threads made them 10-30x slower (27 s vs 2.5 s for 4 s of audio).
+    with one_thread("blas"):
         _iterate(v, wf, h, n_iter, n_lags, valid, update_templates, h_floor)
     w = wf.reshape(-1, n_lags, n_comp).transpose(0, 2, 1).astype(np.float64)
     return w, h.astype(np.float64)
-
-
-def _single_thread_blas() -> Any:
-    """One BLAS thread: these products are too thin to gain from threads, and on a busy machine
-    OpenBLAS's spinning threads made them 10–30× slower (measured: 27 s vs 2.5 s for 4 s of audio).
-    threadpoolctl comes with scikit-learn, which librosa requires."""
-    from dancedata.compute.thread_pools import one_thread
-
-    return one_thread("blas")
 
 
 def _iterate(

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from dancedata.compute.stems.base import STEM_NAMES, to_mono
+from dancedata.compute.thread_pools import one_thread
 
 DEFAULTS: dict[str, Any] = {
     "n_fft": 2048,
@@ -175,7 +176,9 @@ def repetition_background(
     # no neighbour set changed on the reference tracks (tests/featurize/test_audio_reference.py).
     triangle = np.empty((n, n), dtype=np.float32) if n <= _TRIANGLE_FRAMES else None
     unit: np.ndarray | None = None  # (bins, frames), for the full products of long clips
-    with single_thread_blas():
+    # One BLAS thread for the similarity products: threads add CPU time here (measured 0.34
+    # against 0.10 CPU s on 30 s of audio, two cores) and gain little wall time on a busy machine.
+    with one_thread("blas"):
         for start in range(0, n, block):
             stop = min(start + block, n)
             if triangle is None:
@@ -194,15 +197,6 @@ def repetition_background(
             # the k neighbours' median per bin, compiled: no (block, k, bins) copy to sort
             neighbour_median(frames, nearest, out, start, pairs)
     return out.T  # (bins, frames), Fortran-ordered like the |STFT| it came from
-
-
-def single_thread_blas() -> Any:
-    """One BLAS thread for the similarity products: threads add CPU time here (measured 0.34
-    against 0.10 CPU s on 30 s of audio, two cores) and gain little wall time on a busy
-    machine. threadpoolctl comes with scikit-learn, which librosa requires."""
-    from dancedata.compute.thread_pools import one_thread
-
-    return one_thread("blas")
 
 
 def repetition_foreground(
